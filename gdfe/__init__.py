@@ -1,0 +1,23 @@
+"""gdfe: geometry-driven finite elements for 4D-printed heat-shrinking structures.
+
+Units are millimetres and radians throughout.
+"""
+
+from gdfe.calibration import (DEFAULT_H, PAPER_K, Calibration, CalibrationFit, FoldingTests,
+                              angle_from_ratio, load_folding_tests, ratio_from_angle)
+from gdfe.design import Design, Material, from_masks, from_rows, grid_design, hinge, load_design
+from gdfe.measure import curvature_profile, fold_angle, rigid_align, shape_distance
+from gdfe.mesh import HexMesh, sheet_mesh
+from gdfe.solver import ConvergenceError, Result, Solver, energy, rest_shapes, simulate, system_matrix
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "DEFAULT_H", "PAPER_K", "Calibration", "CalibrationFit", "FoldingTests", "angle_from_ratio",
+    "load_folding_tests", "ratio_from_angle",
+    "Design", "Material", "from_masks", "from_rows", "grid_design", "hinge", "load_design",
+    "curvature_profile", "fold_angle", "rigid_align", "shape_distance",
+    "HexMesh", "sheet_mesh",
+    "ConvergenceError", "Result", "Solver", "energy", "rest_shapes", "simulate", "system_matrix",
+    "__version__",
+]

@@ -1,0 +1,5 @@
+import sys
+
+from gdfe.cli import main
+
+sys.exit(main())

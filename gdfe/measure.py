@@ -1,0 +1,164 @@
+"""Measurements of simulated (or scanned) shapes: fold angles, curvature, shape distance."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["fold_angle", "curvature_profile", "rigid_align", "shape_distance", "column_frames"]
+
+
+def rigid_align(source, target, weights=None):
+    """Best rotation and translation taking ``source`` onto ``target`` (Kabsch).
+
+    Parameters
+    ----------
+    source, target : (n, 3) float arrays [mm]
+        Corresponding points.
+    weights : (n,) float array, optional
+
+    Returns
+    -------
+    Q : (3, 3) float array
+        Rotation (det +1).
+    t : (3,) float array [mm]
+        Translation: ``source @ Q.T + t`` is aligned with ``target``.
+    """
+    source = np.asarray(source, float)
+    target = np.asarray(target, float)
+    if source.shape != target.shape or source.ndim != 2 or source.shape[1] != 3:
+        raise ValueError(f"source, target: expected two (n, 3) arrays of the same shape, "
+                         f"got {source.shape} and {target.shape}")
+    w = np.ones(len(source)) if weights is None else np.asarray(weights, float)
+    w = w / w.sum()
+    cs, ct = w @ source, w @ target
+    H = ((source - cs) * w[:, None]).T @ (target - ct)
+    U, _, Vt = np.linalg.svd(H)
+    dd = np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0
+    Q = Vt.T @ np.diag([1.0, 1.0, dd]) @ U.T
+    return Q, ct - cs @ Q.T
+
+
+def shape_distance(a, b):
+    """Distance between two shapes with corresponding points after rigid alignment.
+
+    Returns
+    -------
+    dict
+        ``rms`` and ``max`` vertex distance [mm], and ``aligned`` (``b`` moved onto ``a``).
+    """
+    Q, t = rigid_align(b, a)
+    bb = np.asarray(b, float) @ Q.T + t
+    d = np.linalg.norm(bb - np.asarray(a, float), axis=1)
+    return {"rms": float(np.sqrt((d**2).mean())), "max": float(d.max()), "aligned": bb}
+
+
+def column_frames(points, design, cells=None):
+    """Rotation of every column of cells (fixed x index) relative to the flat print.
+
+    Parameters
+    ----------
+    points : (n, 3) float array [mm]
+    design : Design
+    cells : (k,) int array, optional
+        Restrict to these cells.
+
+    Returns
+    -------
+    cols : (c,) int array
+        Column indices i (along x), ascending.
+    Q : (c, 3, 3) float array
+        Rotation of each column.
+    centre : (c, 3) float array [mm]
+        Centroid of each column's vertices.
+    """
+    mesh = design.mesh
+    sel = np.arange(mesh.n_cells) if cells is None else np.asarray(cells)
+    ci = mesh.cell_ij[sel, 0]
+    cols = np.unique(ci)
+    Qs, cs = [], []
+    for c in cols:
+        vid = np.unique(mesh.cells[sel[ci == c]])
+        Q, _ = rigid_align(mesh.points[vid], points[vid])
+        Qs.append(Q)
+        cs.append(points[vid].mean(axis=0))
+    return cols, np.array(Qs), np.array(cs)
+
+
+def _rotvec(Q):
+    """Rotation vectors (axis * angle) of rotations ``(k, 3, 3)``."""
+    c = np.clip((np.trace(Q, axis1=1, axis2=2) - 1) / 2, -1, 1)
+    th = np.arccos(c)
+    ax = np.stack([Q[:, 2, 1] - Q[:, 1, 2], Q[:, 0, 2] - Q[:, 2, 0], Q[:, 1, 0] - Q[:, 0, 1]], 1)
+    s = np.sin(th)
+    small = s < 1e-9
+    ax = ax / np.where(small, 1.0, 2 * s)[:, None]
+    ax[small] = 0.5 * ax[small]  # near identity: vee(Q - Q^T)/2 ~ theta * axis
+    return np.where(small[:, None], ax, ax * th[:, None])
+
+
+def fold_angle(result, design=None, a="panel_a", b="panel_b", axis=(0.0, -1.0, 0.0)):
+    """Fold angle [rad] between two regions of a strip: the turn of the strip from ``a`` to ``b``.
+
+    The angle is accumulated column by column along x (the relative rotation of each
+    column of cells to the next, projected on the fold ``axis`` in the flat print), so
+    folds beyond pi are measured, and the sign says the direction: positive for a strip
+    that curls towards +z (top face inside).
+
+    Parameters
+    ----------
+    result : Result or (n, 3) float array
+        A :func:`gdfe.simulate` result, or vertex positions (then ``design`` is needed).
+    design : Design, optional
+    a, b : str
+        Region names of the two panels (default: those of :func:`gdfe.hinge`).
+    axis : (3,) float
+        Fold axis in the flat print.
+    """
+    points, design = _points_design(result, design)
+    cells_a, cells_b = design.region_cells(a), design.region_cells(b)
+    ia = design.mesh.cell_ij[cells_a, 0]
+    ib = design.mesh.cell_ij[cells_b, 0]
+    lo, hi = (ia.max(), ib.min()) if ia.max() < ib.min() else (ib.max(), ia.min())
+    ci = design.mesh.cell_ij[:, 0]
+    span = np.nonzero((ci >= lo) & (ci <= hi))[0]
+    _, Q, _ = column_frames(points, design, span)
+    total = _accumulated_turn(Q, axis)
+    return total if ia.max() < ib.min() else -total
+
+
+def _accumulated_turn(Q, axis):
+    rel = np.einsum("kji,kjl->kil", Q[:-1], Q[1:])  # Q_k^T Q_{k+1}: turn in the frame of column k
+    return float((_rotvec(rel) @ np.asarray(axis, float)).sum())
+
+
+def curvature_profile(result, design=None, cells=None, axis=(0.0, -1.0, 0.0)):
+    """Curvature along a strip (x direction), column by column.
+
+    Returns
+    -------
+    dict
+        ``s`` (c-1,) arc length at mid-column pairs [mm], ``kappa`` (c-1,) signed curvature
+        [1/mm] (turn between neighbouring columns over their centroid distance),
+        ``radius`` [mm] (inf where flat), ``turn`` total turning angle [rad].
+    """
+    points, design = _points_design(result, design)
+    _, Q, centre = column_frames(points, design, cells)
+    rel = np.einsum("kji,kjl->kil", Q[:-1], Q[1:])
+    dth = _rotvec(rel) @ np.asarray(axis, float)
+    ds = np.linalg.norm(np.diff(centre, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(ds)])
+    kappa = dth / ds
+    with np.errstate(divide="ignore"):
+        radius = np.where(np.abs(kappa) > 1e-12, 1.0 / np.abs(kappa), np.inf)
+    return {"s": 0.5 * (s[1:] + s[:-1]), "kappa": kappa, "radius": radius, "turn": float(dth.sum())}
+
+
+def _points_design(result, design):
+    if hasattr(result, "points") and hasattr(result, "design"):
+        return result.points, result.design
+    if design is None:
+        raise TypeError("design: needed when result is an array of points")
+    pts = np.asarray(result, float)
+    if pts.shape != design.mesh.points.shape:
+        raise ValueError(f"result: expected points of shape {design.mesh.points.shape}, got {pts.shape}")
+    return pts, design

@@ -1,0 +1,569 @@
+"""The GDFE local-global solver (paper Sec. 3.1).
+
+The energy of Eq. 5 is, with ``D`` the 8x8 mean-centring matrix of Eq. 4,
+
+    E(V, {Q_i}) = sum_i  w_i || D V_i - Q_i P_i ||^2 ,
+
+where ``V_i`` are the eight current vertices of cell ``i``, ``P_i`` its contracted rest
+shape (centred) and ``Q_i`` a rotation, ``w_i`` the cell volume. The solver alternates
+
+* the **orientation step**: for fixed ``V``, every ``Q_i`` is the rotation closest to the
+  cross-covariance ``S_i = (D V_i)^T P_i`` (one batched SVD; a reflection is turned into
+  the nearest rotation by flipping the smallest singular direction), and
+* the **assembly step**: for fixed ``Q``, ``V`` solves ``A^T A V = A^T p``, an ``n x n``
+  sparse system shared by x, y and z, factorised once. Translations are its null space;
+  one vertex is held where it is, which fixes them without changing the shape.
+
+Each step lowers E, so plain alternation converges, but slowly for bending. The default
+solver accelerates the same fixed-point map with Anderson mixing, accepting a mixed
+iterate only when its energy is below that of the current iterate (otherwise it takes
+the plain step), and starts from the small-rotation (linearised) solution of the same
+energy, which already bends the right way. The converged shape is a fixed point of the
+paper's alternation either way.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from gdfe._validate import check_int, check_positive
+from gdfe.design import Design, Material
+
+__all__ = ["Result", "ConvergenceError", "simulate", "rest_shapes", "system_matrix", "energy",
+           "Solver"]
+
+log = logging.getLogger(__name__)
+
+#: The mean-centring matrix D of Eq. 4.
+D8 = np.eye(8) - 1.0 / 8.0
+
+
+class ConvergenceError(RuntimeError):
+    """Raised by :meth:`Result.check` when the solver did not converge."""
+
+
+@dataclasses.dataclass
+class Result:
+    """Outcome of :func:`simulate`.
+
+    Attributes
+    ----------
+    design : Design
+        The simulated design.
+    points : (n, 3) float array [mm]
+        Vertex positions of the final (fully contracted) shape.
+    converged : bool
+        Whether every frame met the tolerance within ``max_iter`` iterations.
+    iterations : int
+        Assembly steps (sparse solves) over all frames.
+    residual : float
+        Final fixed-point residual: the largest vertex move one more plain iteration
+        would make, divided by the film thickness.
+    energy : float
+        Final energy (Eq. 5) [mm^5].
+    energy_history : (k,) float array
+        Energy of each accepted iterate, all frames in sequence.
+    seconds : float
+        Wall-clock time of the solve, factorisation included.
+    frames : list of (n, 3) float arrays
+        Shape at each activation level (first the flat print), for a time series.
+    activation : (f,) float array
+        Activation of each frame, 0 (as printed) to 1 (fully contracted).
+    frame_iterations : list of int
+        Iterations per frame.
+    method : str
+        ``"anderson"`` or ``"plain"``.
+    timings : dict
+        Seconds spent in factorisation, orientation steps and assembly steps.
+    """
+
+    design: Design
+    points: np.ndarray
+    converged: bool
+    iterations: int
+    residual: float
+    energy: float
+    energy_history: np.ndarray
+    seconds: float
+    frames: list
+    activation: np.ndarray
+    frame_iterations: list
+    method: str
+    timings: dict
+
+    def check(self):
+        """Raise :class:`ConvergenceError` unless the solve converged; return self."""
+        if not self.converged:
+            raise ConvergenceError(
+                f"GDFE solve did not converge: residual {self.residual:.3g} after "
+                f"{self.iterations} iterations ({self.method})")
+        return self
+
+    def summary(self) -> dict:
+        return {"converged": bool(self.converged), "iterations": int(self.iterations),
+                "residual": float(self.residual), "energy": float(self.energy),
+                "seconds": float(self.seconds), "n_elements": int(self.design.n_cells),
+                "n_points": int(self.design.mesh.n_points), "method": self.method,
+                "frames": len(self.frames)}
+
+
+def rest_shapes(design, activation=1.0):
+    """Contracted rest shape of every cell, mean-centred.
+
+    Parameters
+    ----------
+    design : Design
+    activation : float
+        Fraction of the contraction applied: the free face shrinks by ``1 - a (1 - R)``.
+
+    Returns
+    -------
+    (m, 8, 3) float array [mm]
+    """
+    mesh = design.mesh
+    X = mesh.points[mesh.cells]  # (m, 8, 3)
+    t = X[..., 2] / design.h  # height in the film, 0 (bottom) .. 1 (top)
+    mat = design.material[:, None]
+    shrink = activation * (1.0 - design.R)[:, None]  # (m, 1)
+    frac = np.zeros_like(t)
+    frac = np.where(mat == Material.CONTRACT_TOP, t, frac)
+    frac = np.where(mat == Material.CONTRACT_BOTTOM, 1.0 - t, frac)
+    frac = np.where(mat == Material.FREE_SHRINK, 1.0, frac)
+    sx = 1.0 - shrink * frac
+    sy = 1.0 - design.isotropy * shrink * frac
+    c = X.mean(axis=1, keepdims=True)
+    P = X - c
+    P[..., 0] *= sx
+    P[..., 1] *= sy
+    return P - P.mean(axis=1, keepdims=True)
+
+
+def system_matrix(design):
+    """The assembled ``A^T A = sum_i w_i S_i^T D S_i`` (n x n, symmetric, rows sum to 0)."""
+    cells = design.mesh.cells
+    w = design.mesh.cell_volumes()
+    rows = np.repeat(cells, 8, axis=1).ravel()
+    cols = np.tile(cells, (1, 8)).ravel()
+    data = (w[:, None, None] * D8[None]).ravel()
+    n = design.mesh.n_points
+    return sp.csr_matrix((data, (rows, cols)), shape=(n, n))
+
+
+def _det3(A):
+    return (A[:, 0, 0] * (A[:, 1, 1] * A[:, 2, 2] - A[:, 1, 2] * A[:, 2, 1])
+            - A[:, 0, 1] * (A[:, 1, 0] * A[:, 2, 2] - A[:, 1, 2] * A[:, 2, 0])
+            + A[:, 0, 2] * (A[:, 1, 0] * A[:, 2, 1] - A[:, 1, 1] * A[:, 2, 0]))
+
+
+def _cof3(A):
+    """Cofactor matrices of a batch of 3x3 matrices (``det(A) * inv(A).T``)."""
+    C = np.empty_like(A)
+    C[:, 0] = np.cross(A[:, 1], A[:, 2])
+    C[:, 1] = np.cross(A[:, 2], A[:, 0])
+    C[:, 2] = np.cross(A[:, 0], A[:, 1])
+    return C
+
+
+def _rotations(S, tol=1e-12, max_iter=30):
+    """Closest rotations to a batch of 3x3 matrices ``S`` (m, 3, 3).
+
+    Returns the rotations and ``tr(Q^T S)``, the sum of the signed singular values.
+    Matrices with a positive determinant go through the scaled Newton iteration for the
+    polar factor (quadratic convergence, all elements at once); the few with
+    ``det(S) <= 0`` (a cell turned inside out) go through an SVD whose smallest singular
+    direction is flipped, which gives the closest proper rotation.
+    """
+    m = S.shape[0]
+    Q = np.empty_like(S)
+    scale = np.sqrt(np.einsum("mij,mij->m", S, S))
+    scale = np.where(scale > 0, scale, 1.0)
+    A = S / scale[:, None, None]
+    det = _det3(A)
+    good = det > 1e-10
+    idx = np.nonzero(good)[0]
+    X = A[idx]
+    for _ in range(max_iter):
+        d = _det3(X)
+        g = np.abs(d) ** (-1.0 / 3.0)
+        Xn = 0.5 * (g[:, None, None] * X + _cof3(X) / (g * d)[:, None, None])
+        delta = np.abs(Xn - X).max(axis=(1, 2))
+        X = Xn
+        if delta.max() < tol:
+            break
+    Q[idx] = X
+    bad = np.nonzero(~good)[0]
+    if bad.size:
+        U, _, Vt = np.linalg.svd(S[bad])
+        dd = np.linalg.det(U) * np.linalg.det(Vt)
+        U[:, :, 2] *= dd[:, None]
+        Q[bad] = U @ Vt
+    return Q, np.einsum("mij,mij->m", Q, S)
+
+
+def energy(points, design, activation=1.0):
+    """Energy of Eq. 5 at ``points`` with the optimal rotations [mm^5]."""
+    return Solver(design).energy(points, activation)
+
+
+class Solver:
+    """A GDFE solver for one design: the factorised system, reused for every solve.
+
+    Parameters
+    ----------
+    design : Design
+    """
+
+    def __init__(self, design):
+        if not isinstance(design, Design):
+            raise TypeError(f"design: expected a gdfe.Design, got {type(design).__name__}")
+        self.design = design
+        mesh = design.mesh
+        self.cells = mesh.cells
+        self.w = mesh.cell_volumes()
+        self.n = mesh.n_points
+        m = mesh.n_cells
+        t0 = time.perf_counter()
+        self.L = system_matrix(design).tocsc()
+        # hold one vertex of the first rigid cell (else of cell 0) in place
+        rigid = np.nonzero(design.material == Material.RIGID)[0]
+        self.pin = int(self.cells[rigid[0] if rigid.size else 0, 0])
+        self.free = np.setdiff1d(np.arange(self.n), [self.pin])
+        self.L_ff = self.L[self.free][:, self.free].tocsc()
+        self.L_fp = self.L[self.free][:, [self.pin]]
+        self._lu = _factorise(self.L_ff)
+        # scatter: b = B @ T.reshape(8m, 3) with B[v, 8i + k] = w_i when cells[i, k] == v
+        self.B = sp.csr_matrix((np.repeat(self.w, 8), (self.cells.ravel(), np.arange(8 * m))),
+                               shape=(self.n, 8 * m))
+        self.timings = {"factorise": time.perf_counter() - t0, "orientation": 0.0, "assembly": 0.0}
+        self._P = {}
+        self._Psq = {}
+
+    # -- the two steps -------------------------------------------------------------------
+    def _rest(self, activation):
+        key = float(activation)
+        if key not in self._P:
+            self._P = {key: rest_shapes(self.design, activation)}
+            self._Psq = {key: np.einsum("mkj,mkj->m", self._P[key], self._P[key])}
+        return self._P[key], self._Psq[key]
+
+    def orient(self, V, activation=1.0):
+        """Orientation step: optimal rotations ``(m, 3, 3)`` and the energy at ``V``."""
+        t0 = time.perf_counter()
+        P, Psq = self._rest(activation)
+        X = V[self.cells]
+        X = X - X.mean(axis=1, keepdims=True)
+        S = np.einsum("mki,mkj->mij", X, P)
+        Q, ssum = _rotations(S)
+        E = float(self.w @ (np.einsum("mki,mki->m", X, X) + Psq - 2.0 * ssum))
+        self._last_S = S
+        self.timings["orientation"] += time.perf_counter() - t0
+        return Q, max(E, 0.0)
+
+    def assemble(self, Q, V_pin, activation=1.0):
+        """Assembly step: the vertices minimising Eq. 5 for rotations ``Q``, one vertex held at ``V_pin``."""
+        t0 = time.perf_counter()
+        P, _ = self._rest(activation)
+        T = np.einsum("mij,mkj->mki", Q, P).reshape(-1, 3)
+        b = self.B @ T
+        self._b = b
+        rhs = b[self.free] - self.L_fp @ V_pin[None, :]
+        V = np.empty((self.n, 3))
+        V[self.free] = self._lu.solve(np.asfortranarray(rhs))
+        V[self.pin] = V_pin
+        self.timings["assembly"] += time.perf_counter() - t0
+        return V
+
+    def energy(self, V, activation=1.0):
+        return self.orient(np.asarray(V, float), activation)[1]
+
+    def _solve_newton(self, V0, activation, tol, max_iter):
+        """Damped Newton on the rotation-reduced energy; see :meth:`Solver.hessian`."""
+        V = np.array(V0, float)
+        Vp = V[self.pin].copy()
+        scale = self.design.h
+        n = self.n
+        fdof = (3 * self.free[:, None] + np.arange(3)).ravel()
+        Q, E = self.orient(V, activation)
+        S = self._last_S
+        energies = [E]
+        mu = 1e-3
+        it = 0
+        while True:
+            G = self.assemble(Q, Vp, activation)  # the plain step from V
+            it += 1
+            res = float(np.abs(G - V).max() / scale)
+            if res <= tol or it >= max_iter:
+                break
+            t0 = time.perf_counter()
+            grad = 2.0 * (self.L @ V - self._b).ravel()  # set by assemble
+            Hg = self.hessian(Q, S, activation, mu=mu)
+            self.timings["newton"] = self.timings.get("newton", 0.0) + time.perf_counter() - t0
+            for _ in range(20):
+                t0 = time.perf_counter()
+                step = np.zeros(3 * n)
+                step[fdof] = _factorise(Hg[fdof][:, fdof]).solve(-grad[fdof])
+                self.timings["newton"] += time.perf_counter() - t0
+                Vt = V + step.reshape(n, 3)
+                Qt, Et = self.orient(Vt, activation)
+                if Et < E:
+                    V, Q, E, S = Vt, Qt, Et, self._last_S
+                    mu = max(mu / 4.0, 1e-8)
+                    break
+                mu *= 8.0
+                Hg = self.hessian(Q, S, activation, mu=mu)
+            else:  # no descent even with heavy damping: take the plain step
+                V = G
+                Q, E = self.orient(V, activation)
+                S = self._last_S
+            energies.append(E)
+        return G, res <= tol, it, res, energies + [self.orient(G, activation)[1]]
+
+    def hessian(self, Q, S, activation=1.0, mu=0.0):
+        """Positive semi-definite Hessian of the rotation-reduced energy, plus ``mu`` times ``2 L``.
+
+        With every rotation optimal, the energy of a cell is
+        ``w (|X|^2 + |P|^2 - 2 tr(Q^T S))`` and its gradient ``2 w (x_k - Q p_k)``. The
+        rotation moves with the vertices by ``Q^T dQ = [omega]x``,
+        ``omega = M^{-1} sum_l p_l x Q^T dx_l`` with ``M = tr(Y) I - Y`` and ``Y = Q^T S``
+        (the derivative of the polar factor). Hence the cell Hessian in its 24 vertex
+        coordinates is ``2 w (D (x) I3 - G^T M^{-1} G)`` with ``G_k = [p_k]x Q^T``. Since
+        ``G G^T = M0 = tr(C) I - C``, ``C = P^T P``, it is positive semi-definite exactly
+        when the eigenvalues of ``M0^{-1/2} M M0^{-1/2}`` are >= 1; they are clamped to
+        that, per cell, which keeps every Newton step a descent direction.
+
+        Returns
+        -------
+        (3n, 3n) sparse matrix
+            Unknowns ordered vertex-major (``3 v + c``).
+        """
+        P, _ = self._rest(activation)
+        m = self.cells.shape[0]
+        if getattr(self, "_hess_key", None) != float(activation):
+            C = np.einsum("mki,mkj->mij", P, P)
+            M0 = np.trace(C, axis1=1, axis2=2)[:, None, None] * np.eye(3) - C
+            lam0, W0 = np.linalg.eigh(M0)
+            self._M0is = np.einsum("mij,mj,mkj->mik", W0, 1.0 / np.sqrt(np.maximum(lam0, 1e-300)), W0)
+            Kx = np.zeros(P.shape + (3,))  # [p]x
+            Kx[..., 0, 1], Kx[..., 0, 2] = -P[..., 2], P[..., 1]
+            Kx[..., 1, 0], Kx[..., 1, 2] = P[..., 2], -P[..., 0]
+            Kx[..., 2, 0], Kx[..., 2, 1] = -P[..., 1], P[..., 0]
+            self._Kx = Kx
+            rows = np.broadcast_to((3 * np.arange(m))[:, None, None, None] + np.arange(3)[None, None, :, None],
+                                   (m, 8, 3, 3))
+            cols = np.broadcast_to(3 * self.cells[:, :, None, None] + np.arange(3)[None, None, None, :],
+                                   (m, 8, 3, 3))
+            self._G_index = (rows.ravel(), cols.ravel())
+            self._L3 = sp.kron(self.L, sp.eye(3), format="csr")
+            self._hess_key = float(activation)
+        Y = np.einsum("mji,mjk->mik", Q, S)
+        Y = 0.5 * (Y + Y.transpose(0, 2, 1))
+        M = np.trace(Y, axis1=1, axis2=2)[:, None, None] * np.eye(3) - Y
+        B = self._M0is @ M @ self._M0is
+        lam, W = np.linalg.eigh(B)
+        lam = np.maximum(lam, 1.0)
+        # (w N)^(1/2) with N = M0^{-1/2} W diag(1/lam) W^T M0^{-1/2}
+        root = np.einsum("mij,mjk,mk->mik", self._M0is, W, np.sqrt(self.w[:, None] / lam))
+        G = np.einsum("mkab,mcb->mkac", self._Kx, Q)  # G_k = [p_k]x Q^T, (m, 8, 3, 3)
+        RG = np.einsum("mba,mkbc->mkac", root, G)  # root^T G_k
+        J = sp.csr_matrix((RG.ravel(), self._G_index), shape=(3 * m, 3 * self.n))
+        return (2.0 * (1.0 + mu)) * self._L3 - 2.0 * (J.T @ J)
+
+    # -- starting shapes -----------------------------------------------------------------
+    def linearised_start(self, V, activation=1.0):
+        """Shape from the small-rotation solution of Eq. 5 around ``V``.
+
+        Minimises ``sum_i w_i || D V_i - (I + [omega_i]x) P_i ||^2`` jointly over the
+        vertices and one infinitesimal rotation ``omega_i`` per cell (the quadratic model
+        of the energy), then applies the finite rotations ``exp([omega_i]x)`` in one
+        assembly step. Cells are compared in the frame of ``V``, so ``V`` must be the
+        flat print or a shape whose cells are unrotated.
+        """
+        P, _ = self._rest(activation)
+        m = self.cells.shape[0]
+        n = self.n
+        sw = np.sqrt(self.w)
+        # residual rows (i, k, c): sum_l D_kl V[cell_il, c] + (p_ik x omega_i)_c - p_ikc
+        # -[omega]x p = p x omega:  row c: eps_{c a b} p_a omega_b
+        r_idx = np.arange(24 * m).reshape(m, 8, 3)
+        Dr = np.broadcast_to(r_idx[:, :, None, :], (m, 8, 8, 3))
+        Dc = 3 * self.cells[:, None, :, None] + np.arange(3)[None, None, None, :]
+        Dc = np.broadcast_to(Dc, (m, 8, 8, 3))
+        Dd = np.broadcast_to((sw[:, None, None, None] * D8[None, :, :, None]), (m, 8, 8, 3))
+        cross = np.zeros((m, 8, 3, 3))  # cross[i,k,c,b]: coefficient of omega_ib in row c
+        px, py, pz = P[..., 0], P[..., 1], P[..., 2]
+        cross[..., 0, 1], cross[..., 0, 2] = -pz, py
+        cross[..., 1, 0], cross[..., 1, 2] = pz, -px
+        cross[..., 2, 0], cross[..., 2, 1] = -py, px
+        Wr = np.broadcast_to(r_idx[..., None], (m, 8, 3, 3))
+        Wc = np.broadcast_to(3 * n + 3 * np.arange(m)[:, None, None, None] + np.arange(3), (m, 8, 3, 3))
+        Wd = sw[:, None, None, None] * cross
+        J = sp.csr_matrix(
+            (np.concatenate([Dd.ravel(), Wd.ravel()]),
+             (np.concatenate([Dr.ravel(), Wr.ravel()]), np.concatenate([Dc.ravel(), Wc.ravel()]))),
+            shape=(24 * m, 3 * (n + m)))
+        rhs = (sw[:, None, None] * P).ravel()
+        # hold the pinned vertex (3 dofs) and the rotation of the cell it belongs to
+        pin_cell = int(np.nonzero((self.cells == self.pin).any(axis=1))[0][0])
+        fixed = np.r_[3 * self.pin + np.arange(3), 3 * n + 3 * pin_cell + np.arange(3)]
+        keep = np.setdiff1d(np.arange(3 * (n + m)), fixed)
+        x0 = np.zeros(3 * (n + m))
+        x0[:3 * n] = V.ravel()
+        Jk = J[:, keep].tocsc()
+        A = (Jk.T @ Jk).tocsc()
+        y = _factorise(A).solve(Jk.T @ (rhs - J[:, fixed] @ x0[fixed]))
+        x = x0.copy()
+        x[keep] = y
+        omega = x[3 * n:].reshape(m, 3)
+        Q = _expmap(omega)
+        return self.assemble(Q, V[self.pin], activation)
+
+    # -- the solve ----------------------------------------------------------------------
+    def solve(self, V0, activation=1.0, method="newton", tol=1e-6, max_iter=200, history=6):
+        """Minimise Eq. 5 from ``V0``.
+
+        Returns ``(V, converged, iterations, residual, energies)``.
+        """
+        if method == "newton":
+            return self._solve_newton(V0, activation, tol, max_iter)
+        V = np.array(V0, float)
+        Vp = V[self.pin].copy()
+        scale = self.design.h
+        Q, E = self.orient(V, activation)
+        G = self.assemble(Q, Vp, activation)
+        F = G - V
+        energies = [E]
+        dF, dG = [], []
+        res = float(np.abs(F).max() / scale)
+        it = 1
+        while res > tol and it < max_iter:
+            if method == "anderson" and dF:
+                dFm = np.stack([d.ravel() for d in dF], axis=1)
+                dGm = np.stack([d.ravel() for d in dG], axis=1)
+                gamma, *_ = np.linalg.lstsq(dFm, F.ravel(), rcond=None)
+                Vt = G - (dGm @ gamma).reshape(V.shape)
+                Qt, Et = self.orient(Vt, activation)
+                if Et <= E:
+                    V, Q, E = Vt, Qt, Et
+                else:
+                    dF, dG = [], []
+                    V = G
+                    Q, E = self.orient(V, activation)
+            else:
+                V = G
+                Q, E = self.orient(V, activation)
+            energies.append(E)
+            G_new = self.assemble(Q, Vp, activation)
+            F_new = G_new - V
+            it += 1
+            if method == "anderson":
+                dF.append(F_new - F)
+                dG.append(G_new - G)
+                if len(dF) > history:
+                    dF.pop(0)
+                    dG.pop(0)
+            F, G = F_new, G_new
+            res = float(np.abs(F).max() / scale)
+        # report the plain step's result: it is at least as good as V
+        V = G
+        _, E = self.orient(V, activation)
+        energies.append(E)
+        return V, res <= tol, it, res, energies
+
+
+def _factorise(A):
+    """Sparse LU of a symmetric positive definite matrix: symmetric ordering, no pivoting."""
+    return spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                     options={"SymmetricMode": True})
+
+
+def _expmap(omega):
+    """Rotation matrices ``exp([omega]x)`` for a batch of rotation vectors ``(m, 3)``."""
+    th = np.linalg.norm(omega, axis=1)
+    k = omega / np.where(th > 0, th, 1.0)[:, None]
+    Kx = np.zeros((omega.shape[0], 3, 3))
+    Kx[:, 0, 1], Kx[:, 0, 2] = -k[:, 2], k[:, 1]
+    Kx[:, 1, 0], Kx[:, 1, 2] = k[:, 2], -k[:, 0]
+    Kx[:, 2, 0], Kx[:, 2, 1] = -k[:, 1], k[:, 0]
+    s, c = np.sin(th)[:, None, None], np.cos(th)[:, None, None]
+    return np.eye(3) + s * Kx + (1 - c) * (Kx @ Kx)
+
+
+def simulate(design, *, method="newton", init="linear", steps=1, tol=1e-6, max_iter=None,
+             history=6, seed=0):
+    """Simulate the heat-activated shape change of a design.
+
+    Parameters
+    ----------
+    design : Design
+        The film, its material map and contraction ratios.
+    method : {"newton", "anderson", "plain"}
+        ``"plain"`` is the paper's alternation; ``"anderson"`` accelerates it with an
+        energy safeguard; ``"newton"`` (default) takes damped Newton steps on the same
+        energy (:meth:`Solver.hessian`). All stop at a fixed point of the same map, and
+        the residual is always that of the paper's plain step.
+    init : {"linear", "flat"}
+        Starting shape of the first frame: the small-rotation solution (default), or the
+        flat print with a seeded perturbation of 1e-4 h out of plane (the flat print itself
+        is a fixed point of the alternation, so it must be perturbed to bend at all).
+    steps : int
+        Number of frames the contraction is ramped over (activation k/steps for
+        k = 1..steps), each started from the last: the time series of the fold.
+    tol : float
+        Convergence tolerance on the fixed-point residual (largest vertex move of one
+        plain iteration, in units of the film thickness h).
+    max_iter : int, optional
+        Iteration limit per frame; default 200 for ``"newton"``, 5000 otherwise.
+    history : int
+        Anderson history length.
+    seed : int
+        Seed of the perturbation used by ``init="flat"``.
+
+    Returns
+    -------
+    Result
+        Check ``result.converged`` (or call ``result.check()``): a solve that hit
+        ``max_iter`` is returned with ``converged=False`` and logged as a warning.
+    """
+    if method not in ("newton", "anderson", "plain"):
+        raise ValueError(f"method: expected 'newton', 'anderson' or 'plain', got {method!r}")
+    if init not in ("linear", "flat"):
+        raise ValueError(f"init: expected 'linear' or 'flat', got {init!r}")
+    steps = check_int("steps", steps)
+    if max_iter is None:
+        max_iter = 200 if method == "newton" else 5000
+    max_iter = check_int("max_iter", max_iter)
+    history = check_int("history", history)
+    tol = check_positive("tol", tol)
+    t0 = time.perf_counter()
+    solver = Solver(design)
+    V = design.mesh.points.copy()
+    frames = [V.copy()]
+    acts = np.linspace(0.0, 1.0, steps + 1)
+    converged, total, res, energies, per_frame = True, 0, 0.0, [], []
+    for k, a in enumerate(acts[1:]):
+        if k == 0:
+            if init == "linear":
+                V = solver.linearised_start(V, a)
+            else:
+                rng = np.random.default_rng(seed)
+                V = V + np.column_stack([np.zeros((len(V), 2)), 1e-4 * design.h * rng.standard_normal(len(V))])
+        V, ok, it, res, E = solver.solve(V, a, method=method, tol=tol, max_iter=max_iter, history=history)
+        converged &= ok
+        total += it
+        per_frame.append(it)
+        energies.extend(E)
+        frames.append(V.copy())
+        if not ok:
+            log.warning("frame %d/%d (activation %.3g) did not converge: residual %.3g after %d iterations",
+                        k + 1, steps, a, res, it)
+    seconds = time.perf_counter() - t0
+    log.info("GDFE %s: %d cells, %d iterations, residual %.2e, %.3f s", method, design.n_cells, total, res, seconds)
+    return Result(design=design, points=V, converged=bool(converged), iterations=total, residual=res,
+                  energy=energies[-1], energy_history=np.array(energies), seconds=seconds, frames=frames,
+                  activation=acts, frame_iterations=per_frame, method=method, timings=dict(solver.timings))
