@@ -3,7 +3,7 @@
 Units are millimetres and radians throughout.
 """
 
-from gdfe.calibration import (DEFAULT_H, PAPER_K, Calibration, CalibrationFit, FoldingTests,
+from gdfe.calibration import (DEFAULT_H, PAPER_K, TABLE1, Calibration, CalibrationFit, FoldingTests,
                               angle_from_ratio, load_folding_tests, ratio_from_angle)
 from gdfe.design import Design, Material, from_masks, from_rows, grid_design, hinge, load_design
 from gdfe.measure import curvature_profile, fold_angle, rigid_align, shape_distance
@@ -13,7 +13,7 @@ from gdfe.solver import ConvergenceError, Result, Solver, energy, rest_shapes, s
 __version__ = "0.1.0"
 
 __all__ = [
-    "DEFAULT_H", "PAPER_K", "Calibration", "CalibrationFit", "FoldingTests", "angle_from_ratio",
+    "DEFAULT_H", "PAPER_K", "TABLE1", "Calibration", "CalibrationFit", "FoldingTests", "angle_from_ratio",
     "load_folding_tests", "ratio_from_angle",
     "Design", "Material", "from_masks", "from_rows", "grid_design", "hinge", "load_design",
     "curvature_profile", "fold_angle", "rigid_align", "shape_distance",

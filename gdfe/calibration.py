@@ -28,6 +28,7 @@ import numpy as np
 from gdfe._validate import check_positive
 
 __all__ = [
+    "TABLE1",
     "PAPER_K",
     "DEFAULT_H",
     "Calibration",
@@ -37,6 +38,9 @@ __all__ = [
     "ratio_from_angle",
     "angle_from_ratio",
 ]
+
+#: Table 1 of the paper (18 folding tests), shipped with the package.
+TABLE1 = Path(__file__).resolve().parent / "data" / "table1.csv"
 
 #: K of Eq. 1 as printed in the paper.
 PAPER_K = 0.3706
