@@ -44,7 +44,7 @@ def _solver_args(p, defaults_from_file=False):
     p.add_argument("--method", choices=["newton", "anderson", "plain"], default=None,
                    help="solver (default newton)")
     p.add_argument("--steps", type=int, default=d, help="frames of the contraction ramp (default 1)")
-    p.add_argument("--tol", type=float, default=None, help="residual tolerance (default 1e-6 h)")
+    p.add_argument("--tol", type=float, default=None, help="residual tolerance (default 1e-7, in units of h)")
     p.add_argument("--max-iter", type=int, default=None, help="iteration limit per frame")
 
 

@@ -307,13 +307,19 @@ class Solver:
             for _ in range(20):
                 t0 = time.perf_counter()
                 step = np.zeros(3 * n)
-                step[fdof] = _factorise(Hg[fdof][:, fdof]).solve(-grad[fdof])
-                self.timings["newton"] += time.perf_counter() - t0
+                try:
+                    step[fdof] = _factorise(Hg[fdof][:, fdof]).solve(-grad[fdof])
+                except RuntimeError:  # numerically singular: damp more
+                    mu *= 8.0
+                    Hg = self.hessian(Q, S, activation, mu=mu)
+                    continue
+                finally:
+                    self.timings["newton"] += time.perf_counter() - t0
                 Vt = V + step.reshape(n, 3)
                 Qt, Et = self.orient(Vt, activation)
                 if Et < E:
                     V, Q, E, S = Vt, Qt, Et, self._last_S
-                    mu = max(mu / 4.0, 1e-8)
+                    mu = max(mu / 4.0, 1e-6)
                     break
                 mu *= 8.0
                 Hg = self.hessian(Q, S, activation, mu=mu)
@@ -424,7 +430,7 @@ class Solver:
         return self.assemble(Q, V[self.pin], activation)
 
     # -- the solve ----------------------------------------------------------------------
-    def solve(self, V0, activation=1.0, method="newton", tol=1e-6, max_iter=200, history=6):
+    def solve(self, V0, activation=1.0, method="newton", tol=1e-7, max_iter=200, history=6):
         """Minimise Eq. 5 from ``V0``.
 
         Returns ``(V, converged, iterations, residual, energies)``.
@@ -494,7 +500,7 @@ def _expmap(omega):
     return np.eye(3) + s * Kx + (1 - c) * (Kx @ Kx)
 
 
-def simulate(design, *, method="newton", init="linear", steps=1, tol=1e-6, max_iter=None,
+def simulate(design, *, method="newton", init="linear", steps=1, tol=1e-7, max_iter=None,
              history=6, seed=0):
     """Simulate the heat-activated shape change of a design.
 

@@ -1,0 +1,190 @@
+"""The GDFE solver against closed forms and invariants."""
+
+import numpy as np
+import pytest
+
+import gdfe
+from gdfe.design import Material
+from gdfe.solver import D8, Solver, _rotations
+
+
+def one_cell(material, R=0.7, h=0.29, size=0.3):
+    return gdfe.grid_design(np.array([[int(material)]]), R, h=h, pixel=size, nz=1)
+
+
+def discrete_hinge_angle(R, L, h, n):
+    """Exact fold of n isosceles trapezoids (sides l, R l, height h): they tile a fan."""
+    return 2 * n * np.arctan((1 - R) * L / (2 * n * h))
+
+
+def test_rest_shape_of_a_contracting_element():
+    des = one_cell(Material.CONTRACT_TOP, R=0.7, size=0.3)
+    P = gdfe.rest_shapes(des)[0]
+    X = des.mesh.points[des.mesh.cells[0]]
+    bottom, top = X[:4] - X[:4].mean(0), X[4:] - X[4:].mean(0)
+    Pb, Pt = P[:4] - P[:4].mean(0), P[4:] - P[4:].mean(0)
+    np.testing.assert_allclose(Pb[:, :2], bottom[:, :2], atol=1e-15)  # coated face keeps its size
+    np.testing.assert_allclose(Pt[:, :2], 0.7 * top[:, :2], atol=1e-15)  # free face shrinks by R
+    np.testing.assert_allclose(P[4:, 2] - P[:4, 2], 0.29)  # thickness kept
+    # the other materials
+    Pr = gdfe.rest_shapes(one_cell(Material.RIGID))[0]
+    np.testing.assert_allclose(Pr, X - X.mean(0), atol=1e-15)
+    Ps = gdfe.rest_shapes(one_cell(Material.FREE_SHRINK))[0]
+    np.testing.assert_allclose(Ps[:, :2], 0.7 * (X - X.mean(0))[:, :2], atol=1e-15)
+    Pbot = gdfe.rest_shapes(one_cell(Material.CONTRACT_BOTTOM))[0]
+    np.testing.assert_allclose(Pbot[:4, :2] - Pbot[:4, :2].mean(0), 0.7 * bottom[:, :2], atol=1e-15)
+
+
+def test_single_element_reaches_its_rest_shape():
+    des = one_cell(Material.CONTRACT_TOP, R=0.6)
+    res = gdfe.simulate(des)
+    assert res.converged
+    d = gdfe.shape_distance(res.points[des.mesh.cells[0]], gdfe.rest_shapes(des)[0])
+    assert d["max"] < 1e-9
+    assert res.energy < 1e-20
+
+
+@pytest.mark.parametrize("method", ["newton", "anderson"])
+def test_uniaxial_hinge_matches_the_exact_trapezoid_fan(method):
+    L, R, h, n = 1.0, 0.75, 0.29, 8
+    des = gdfe.hinge(L, R=R, h=h, isotropy=0.0, cell_size=L / n, width=0.25)
+    res = gdfe.simulate(des, method=method, tol=1e-9).check()
+    # the hinge's trapezoids tile a fan exactly; only the square ends of the panels do not
+    # fit their tilted legs, which costs energy but no fold angle to 1e-6 rad
+    assert gdfe.fold_angle(res) == pytest.approx(discrete_hinge_angle(R, L, h, n), abs=1e-6)
+
+
+def test_hinge_converges_to_eq2_at_second_order():
+    L, R, h = 1.6, 0.6947, 0.29
+    ns = np.array([4, 8, 16])
+    errs = []
+    for n in ns:
+        res = gdfe.simulate(gdfe.hinge(L, R=R, h=h, isotropy=0.0, cell_size=L / n, width=0.2)).check()
+        errs.append(abs(gdfe.fold_angle(res) - gdfe.angle_from_ratio(R, L, h)))
+    rate = np.polyfit(np.log(L / ns), np.log(errs), 1)[0]
+    assert rate == pytest.approx(2.0, abs=0.1), f"observed rate {rate:.3f}"
+
+
+def test_bend_direction_follows_the_free_face():
+    up = gdfe.simulate(gdfe.hinge(1.0, R=0.8, face="top")).check()
+    down = gdfe.simulate(gdfe.hinge(1.0, R=0.8, face="bottom")).check()
+    assert gdfe.fold_angle(up) > 0.5
+    assert gdfe.fold_angle(down) == pytest.approx(-gdfe.fold_angle(up), abs=1e-6)
+
+
+def test_R_equal_one_leaves_the_shape_unchanged():
+    des = gdfe.hinge(1.0, R=1.0)
+    res = gdfe.simulate(des).check()
+    np.testing.assert_allclose(res.points, des.mesh.points, atol=1e-9)
+    assert res.energy < 1e-15  # round-off of |X|^2 + |P|^2 - 2 tr(Q^T S)
+
+
+def test_rigid_motion_of_the_start_moves_the_result_rigidly():
+    des = gdfe.hinge(1.0, R=0.75, cell_size=1 / 8)
+    base = gdfe.simulate(des, tol=1e-9).check()
+    rng = np.random.default_rng(3)
+    Q, _ = np.linalg.qr(rng.standard_normal((3, 3)))
+    Q *= np.linalg.det(Q)
+    t = np.array([1.0, -2.0, 0.5])
+    s = Solver(des)
+    start = base.points @ Q.T + t
+    assert s.energy(start) == pytest.approx(base.energy, rel=1e-9, abs=1e-18)
+    V, ok, *_ = s.solve(start + 1e-3 * rng.standard_normal(start.shape), tol=1e-9)
+    assert ok
+    assert gdfe.shape_distance(V, base.points)["max"] < 1e-6
+
+
+def test_in_plane_rotation_of_the_design_changes_nothing():
+    des = gdfe.hinge(1.0, R=0.75, cell_size=1 / 8)
+    base = gdfe.simulate(des).check()
+    th = 0.4
+    Rz = np.array([[np.cos(th), -np.sin(th), 0], [np.sin(th), np.cos(th), 0], [0, 0, 1]])
+    moved = gdfe.Design(mesh=gdfe.HexMesh(des.mesh.points @ Rz.T + [3.0, 1.0, 0.0], des.mesh.cells,
+                                          des.mesh.cell_ij, des.mesh.cell_k, des.mesh.spacing),
+                        material=des.material, R=des.R, h=des.h, regions=des.regions)
+    res = gdfe.simulate(moved).check()
+    assert gdfe.shape_distance(res.points, base.points)["max"] < 1e-6
+
+
+@pytest.mark.parametrize("method", ["newton", "anderson", "plain"])
+def test_energy_never_increases(method):
+    des = gdfe.hinge(1.0, R=0.75, cell_size=1 / 8)
+    res = gdfe.simulate(des, method=method, max_iter=300)
+    E = res.energy_history
+    assert np.all(np.diff(E) <= 1e-12 * E[0])
+    assert E[-1] < E[0]
+
+
+def test_all_methods_reach_the_same_fixed_point():
+    des = gdfe.hinge(0.5, R=0.85, cell_size=0.5 / 4, panel_length=0.25, width=0.25)
+    ref = gdfe.simulate(des, tol=1e-9).check()
+    for method in ("anderson", "plain"):
+        res = gdfe.simulate(des, method=method, tol=1e-9, max_iter=20000).check()
+        assert gdfe.fold_angle(res) == pytest.approx(gdfe.fold_angle(ref), abs=1e-6), method
+
+
+def test_system_matrix_is_symmetric_with_translations_in_its_null_space():
+    des = gdfe.hinge(1.0, R=0.7, cell_size=1 / 4)
+    A = gdfe.system_matrix(des)
+    assert abs(A - A.T).max() < 1e-15
+    assert np.abs(A @ np.ones(A.shape[0])).max() < 1e-14
+    # positive semi-definite, and the element matrix is the centring projector of Eq. 4
+    x = np.random.default_rng(0).standard_normal(A.shape[0])
+    assert x @ (A @ x) >= 0
+    np.testing.assert_allclose(D8 @ D8, D8, atol=1e-15)
+    np.testing.assert_allclose(D8[0], [7 / 8] + [-1 / 8] * 7)
+
+
+def test_rotations_match_svd_and_handle_reflections():
+    rng = np.random.default_rng(0)
+    S = rng.standard_normal((500, 3, 3))
+    Q, trace = _rotations(S)
+    U, s, Vt = np.linalg.svd(S)
+    flip = np.linalg.det(U @ Vt)
+    U[:, :, 2] *= flip[:, None]
+    np.testing.assert_allclose(Q, U @ Vt, atol=1e-9)
+    np.testing.assert_allclose(np.linalg.det(Q), 1.0, atol=1e-12)
+    s[:, 2] *= flip
+    np.testing.assert_allclose(trace, s.sum(1), atol=1e-9)
+
+
+def test_newton_needs_far_fewer_iterations_than_plain_alternation():
+    des = gdfe.hinge(1.6, d=0.33)
+    newton = gdfe.simulate(des).check()
+    plain = gdfe.simulate(des, method="plain", max_iter=300)
+    assert newton.iterations <= 50
+    assert not plain.converged  # reported, not hidden
+    assert plain.iterations == 300
+
+
+def test_non_convergence_is_flagged_and_check_raises():
+    res = gdfe.simulate(gdfe.hinge(1.0, d=0.33), method="plain", max_iter=3)
+    assert not res.converged
+    with pytest.raises(gdfe.ConvergenceError, match="did not converge"):
+        res.check()
+
+
+def test_contraction_schedule_gives_a_monotone_fold():
+    res = gdfe.simulate(gdfe.hinge(1.0, d=0.33), steps=4).check()
+    angles = [gdfe.fold_angle(p, res.design) for p in res.frames]
+    assert angles[0] == pytest.approx(0.0, abs=1e-12)
+    assert np.all(np.diff(angles) > 0)
+    assert angles[-1] == pytest.approx(gdfe.fold_angle(res))
+    np.testing.assert_allclose(res.activation, [0, 0.25, 0.5, 0.75, 1.0])
+
+
+@pytest.mark.parametrize("kwargs, exc, match", [
+    (dict(method="cg"), ValueError, "method: expected 'newton'"),
+    (dict(init="random"), ValueError, "init: expected 'linear' or 'flat'"),
+    (dict(steps=0), ValueError, "steps: expected an integer >= 1"),
+    (dict(steps=1.5), TypeError, "steps: expected an integer"),
+    (dict(tol=-1), ValueError, "tol: expected a positive"),
+])
+def test_simulate_rejects_bad_options(kwargs, exc, match):
+    with pytest.raises(exc, match=match):
+        gdfe.simulate(gdfe.hinge(1.0, d=0.33), **kwargs)
+
+
+def test_simulate_rejects_a_non_design():
+    with pytest.raises(TypeError, match="design: expected a gdfe.Design"):
+        gdfe.simulate("hinge.toml")
