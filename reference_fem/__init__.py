@@ -17,7 +17,7 @@ True
 """
 
 from .calibrate import DEFAULT_RATIOS, TableFit, fit_to_table, unit_angles
-from .material import CALIBRATED_E_RATIO, CALIBRATED_EIGENSTRAIN, Material
+from .material import CALIBRATED_E_RATIO, CALIBRATED_EIGENSTRAIN, DEFAULT_E_PASSIVE, Material
 from .measure import curvature, fit_circle, fold_angle, midline, midsurface, tangent_angles, turning_angle
 from .mesh import HINGE_RESOLUTIONS, LayeredStrip, Segment, hinge_mesh, layered_strip, strip_mesh
 from .solve import FemResult, solve_linear, solve_nonlinear
@@ -28,6 +28,7 @@ __all__ = [
     "Material",
     "CALIBRATED_E_RATIO",
     "CALIBRATED_EIGENSTRAIN",
+    "DEFAULT_E_PASSIVE",
     "Segment",
     "LayeredStrip",
     "layered_strip",

@@ -1,0 +1,265 @@
+"""Fit the FEM's free parameters (``E_passive / E_active`` and the eigenstrain) to folding tests.
+
+The linear hinge model's fold angle is exactly proportional to the eigenstrain,
+``alpha_i = -eps* a_i(n)``, where ``a_i(n)`` is the angle per unit contraction of test ``i`` at
+modulus ratio ``n = E_passive / E_active``. So for every ``n`` the best ``eps*`` is a closed-form
+least-squares slope, and the fit is a one-dimensional search over ``log n``:
+
+1. ``a_i(n)`` is computed on a grid of ratios (one linear FEM solve per test and ratio; or the
+   Timoshenko formula ``a_i = kappa_T L_i`` for ``model="timoshenko"``),
+2. interpolated in ``log n`` by a cubic spline per test,
+3. the residual sum of squares, minimised over ``eps*`` in closed form, is minimised over ``log n``
+   within the grid.
+
+Leave-one-out: each test is predicted by the parameters fitted to the other tests; the
+leave-one-out RMSE is the root-mean-square of those prediction errors.
+
+Angles in radians, lengths in mm.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+
+import numpy as np
+
+from . import _validate as v
+from .material import Material
+from .timoshenko import timoshenko_curvature
+
+__all__ = ["TableFit", "unit_angles", "fit_to_table", "DEFAULT_RATIOS"]
+
+log = logging.getLogger(__name__)
+
+#: Modulus ratios ``E_passive / E_active`` at which the hinge angles are computed.
+DEFAULT_RATIOS = tuple(float(r) for r in np.geomspace(0.1, 100.0, 13))
+_PROBE = -0.1  # eigenstrain of the linear solves (the angle is scaled to a unit contraction)
+
+
+@dataclasses.dataclass
+class TableFit:
+    """Result of :func:`fit_to_table`.
+
+    Attributes
+    ----------
+    model : str
+        ``"fem"`` (linear hinge FEM) or ``"timoshenko"`` (``alpha = kappa_T L``).
+    E_ratio : float
+        Fitted ``E_passive / E_active``.
+    eigenstrain : float
+        Fitted free in-plane contraction of the film (< 0).
+    rmse, loo_rmse : float [rad]
+        Root-mean-square error of the fit, and of the leave-one-out predictions.
+    r2 : float
+        Coefficient of determination of the fit.
+    at_bound : bool
+        True when the best ratio is at the edge of the searched grid.
+    L, d, h, measured, predicted, loo_predicted : (n,) float arrays
+        The tests [mm, mm, mm, rad] and the fitted / left-out predictions [rad].
+    loo_params : (n, 2) float array
+        ``(E_ratio, eigenstrain)`` fitted without each test.
+    ratios, profile_rmse : (k,) float arrays
+        The grid of ratios and the RMSE with the best eigenstrain at each.
+    seconds : float
+        Time spent [s].
+    """
+
+    model: str
+    E_ratio: float
+    eigenstrain: float
+    rmse: float
+    loo_rmse: float
+    r2: float
+    at_bound: bool
+    L: np.ndarray
+    d: np.ndarray
+    h: np.ndarray
+    measured: np.ndarray
+    predicted: np.ndarray
+    loo_predicted: np.ndarray
+    loo_params: np.ndarray
+    ratios: np.ndarray
+    profile_rmse: np.ndarray
+    seconds: float
+    settings: dict = dataclasses.field(default_factory=dict)
+
+    def material(self) -> Material:
+        """The fitted :class:`Material` (Poisson's ratio as used in the fit)."""
+        return Material.from_ratio(self.E_ratio, self.eigenstrain, nu=self.settings.get("nu", 0.35))
+
+    def as_dict(self) -> dict:
+        return {"model": self.model, "E_ratio": self.E_ratio, "eigenstrain": self.eigenstrain,
+                "rmse_rad": self.rmse, "loo_rmse_rad": self.loo_rmse, "r2": self.r2,
+                "at_bound": self.at_bound, "n_tests": int(self.L.size),
+                "tests": [{"L_mm": a, "d_mm": b, "h_mm": c, "alpha_rad": m, "fit_rad": p,
+                           "loo_rad": q}
+                          for a, b, c, m, p, q in zip(self.L.tolist(), self.d.tolist(),
+                                                      self.h.tolist(), self.measured.tolist(),
+                                                      self.predicted.tolist(),
+                                                      self.loo_predicted.tolist())],
+                "loo_params": self.loo_params.tolist(),
+                "profile": {"E_ratio": self.ratios.tolist(), "rmse_rad": self.profile_rmse.tolist()},
+                "seconds": self.seconds, "settings": self.settings}
+
+
+def _arrays(L, d, h, alpha=None):
+    arrs = [np.atleast_1d(np.asarray(a, dtype=float)) for a in (L, d, h)]
+    n = max(a.size for a in arrs)
+    arrs = [np.broadcast_to(a, (n,)).copy() for a in arrs]
+    for name, a in zip(("L", "d", "h"), arrs):
+        if not np.all(np.isfinite(a)) or np.any(a <= 0):
+            raise ValueError(f"{name} must hold positive lengths in mm, got {a.tolist()}")
+    if alpha is not None:
+        al = np.atleast_1d(np.asarray(alpha, dtype=float))
+        if al.shape != (n,) or not np.all(np.isfinite(al)):
+            raise ValueError(f"alpha must hold {n} finite angles in rad, got {al.tolist()}")
+        arrs.append(al)
+    return arrs
+
+
+def unit_angles(L, d, h, ratios=DEFAULT_RATIOS, *, model="fem", nu=0.35, width=1.0,
+                resolution="default", progress=False):
+    """Fold angle per unit film contraction of each test at each modulus ratio.
+
+    Parameters
+    ----------
+    L, d, h : (n,) float arrays [mm]
+        Hinge width, coat and film thickness of each test.
+    ratios : (k,) float array
+        ``E_passive / E_active`` values.
+    model : {"fem", "timoshenko"}
+        Linear hinge FEM (:func:`~reference_fem.hinge_mesh` + :func:`~reference_fem.solve_linear`)
+        or ``kappa_T L`` with Timoshenko's beam curvature.
+    nu : float
+        Poisson's ratio of both layers (FEM only; Timoshenko's beam formula has none).
+    width : float [mm]
+        Hinge width along the fold line (FEM only).
+    resolution : {"coarse", "default", "fine"}
+        Mesh preset (FEM only).
+    progress : bool
+        Show a progress bar.
+
+    Returns
+    -------
+    (n, k) float array [rad]
+        ``-alpha / eps*`` (positive: folds towards the free face).
+    """
+    L, d, h = _arrays(L, d, h)
+    ratios = np.asarray(ratios, dtype=float)
+    if ratios.ndim != 1 or ratios.size < 1 or np.any(~(ratios > 0)):
+        raise ValueError(f"ratios must be positive E_passive/E_active values, got {ratios.tolist()}")
+    v.choice("model", model, {"fem", "timoshenko"})
+    if model == "timoshenko":
+        return np.stack([timoshenko_curvature(h, d, 1.0, r, -0.5) * L / 0.5 for r in ratios],
+                        axis=1)
+    from .measure import fold_angle
+    from .mesh import hinge_mesh
+    from .solve import solve_linear
+
+    out = np.empty((L.size, ratios.size))
+    jobs = [(i, j) for i in range(L.size) for j in range(ratios.size)]
+    try:
+        from tqdm import tqdm
+
+        jobs = tqdm(jobs, desc="linear hinge solves", disable=not progress)
+    except ImportError:  # pragma: no cover
+        pass
+    strips = {}
+    for i, j in jobs:
+        if i not in strips:
+            strips = {i: hinge_mesh(L[i], d[i], h[i], width=width, resolution=resolution)}
+        mat = Material.from_ratio(ratios[j], _PROBE, nu=nu)
+        res = solve_linear(strips[i], mat)
+        if not res.converged:
+            raise RuntimeError(f"linear solve failed for test {i} at E_ratio {ratios[j]}")
+        out[i, j] = fold_angle(res) / -_PROBE
+    return out
+
+
+def _best_eps(a, alpha):
+    """Least-squares eigenstrain for unit angles ``a`` and measured ``alpha``; returns (eps, rss)."""
+    s = -(a @ alpha) / (a @ a)
+    s = max(s, -0.999)
+    r = alpha + s * a
+    return s, float(r @ r)
+
+
+def _fit_rows(logr, spline, alpha, rows):
+    from scipy.optimize import minimize_scalar
+
+    def rss(x):
+        return _best_eps(spline(x)[rows], alpha[rows])[1]
+
+    grid = np.array([rss(x) for x in logr])
+    k = int(np.argmin(grid))
+    lo, hi = logr[max(k - 1, 0)], logr[min(k + 1, logr.size - 1)]
+    if lo == hi:
+        x = lo
+    else:
+        x = minimize_scalar(rss, bounds=(lo, hi), method="bounded",
+                            options={"xatol": 1e-6}).x
+    eps = _best_eps(spline(x)[rows], alpha[rows])[0]
+    at_bound = bool(np.isclose(x, logr[0], atol=1e-3) or np.isclose(x, logr[-1], atol=1e-3))
+    return float(x), float(eps), at_bound, grid
+
+
+def fit_to_table(L, d, h, alpha, *, model="fem", ratios=DEFAULT_RATIOS, nu=0.35, width=1.0,
+                 resolution="default", angles=None, progress=False) -> TableFit:
+    """Least-squares fit of ``(E_passive / E_active, eps*)`` to measured fold angles.
+
+    Parameters
+    ----------
+    L, d, h, alpha : (n,) float arrays
+        Hinge width [mm], coat thickness [mm], film thickness [mm], measured fold angle [rad],
+        e.g. the paper's Table 1 (``gdfe.load_folding_tests``).
+    model : {"fem", "timoshenko"}
+        See :func:`unit_angles`.
+    ratios : (k,) float array
+        Grid of ratios searched (the fit interpolates between them), k >= 4.
+    nu, width, resolution
+        FEM settings, see :func:`unit_angles`.
+    angles : (n, k) float array, optional
+        Precomputed :func:`unit_angles` (skips the solves).
+    progress : bool
+        Show a progress bar over the solves.
+
+    Returns
+    -------
+    TableFit
+    """
+    from scipy.interpolate import CubicSpline
+
+    t0 = time.perf_counter()
+    L, d, h, alpha = _arrays(L, d, h, alpha)
+    if L.size < 3:
+        raise ValueError(f"need at least 3 folding tests to fit two parameters, got {L.size}")
+    ratios = np.asarray(ratios, dtype=float)
+    if ratios.size < 4:
+        raise ValueError(f"ratios must hold at least 4 values, got {ratios.size}")
+    A = (unit_angles(L, d, h, ratios, model=model, nu=nu, width=width, resolution=resolution,
+                     progress=progress) if angles is None else np.asarray(angles, dtype=float))
+    if A.shape != (L.size, ratios.size):
+        raise ValueError(f"angles must have shape {(L.size, ratios.size)}, got {A.shape}")
+    logr = np.log(ratios)
+    spline = CubicSpline(logr, A, axis=1)
+    rows = np.arange(L.size)
+    x, eps, at_bound, grid = _fit_rows(logr, spline, alpha, rows)
+    pred = -eps * spline(x)
+    loo = np.empty(L.size)
+    loo_params = np.empty((L.size, 2))
+    for i in range(L.size):
+        xi, ei, _, _ = _fit_rows(logr, spline, alpha, np.delete(rows, i))
+        loo[i] = -ei * spline(xi)[i]
+        loo_params[i] = (np.exp(xi), ei)
+    res = alpha - pred
+    r2 = 1.0 - float(res @ res) / float(((alpha - alpha.mean()) ** 2).sum())
+    return TableFit(model=model, E_ratio=float(np.exp(x)), eigenstrain=eps,
+                    rmse=float(np.sqrt(np.mean(res**2))),
+                    loo_rmse=float(np.sqrt(np.mean((alpha - loo) ** 2))), r2=r2,
+                    at_bound=at_bound, L=L, d=d, h=h, measured=alpha, predicted=pred,
+                    loo_predicted=loo, loo_params=loo_params, ratios=ratios,
+                    profile_rmse=np.sqrt(grid / L.size), seconds=time.perf_counter() - t0,
+                    settings={"nu": nu, "width_mm": width, "resolution": resolution,
+                              "probe_eigenstrain": _PROBE})

@@ -1,0 +1,288 @@
+"""Linear and geometrically nonlinear solves of an eigenstrained layered strip.
+
+Rigid-body modes are removed by the symmetry planes of the model and as few point supports as
+needed, never by clamping: the eigenstrain load is self-equilibrated, so the supports carry no
+reaction and the panels shrink freely.
+
+- ``symmetry="xy"`` (quarter model): ``u_x = 0`` on ``x = 0``, ``u_y = 0`` on ``y = 0``, and
+  ``u_z = 0`` at the point ``(0, 0, h/2)``.
+- ``symmetry="y"`` (half model): ``u_y = 0`` on ``y = 0``; ``u_x = u_z = 0`` at the film mid-plane
+  point nearest the middle of the strip and ``u_z = 0`` at the left end of that line.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from . import _validate as v
+from ._kernel import Discretisation, element_fields, linear_system, neohookean_state, svk_state
+from .material import Material
+from .mesh import LayeredStrip
+
+__all__ = ["FemResult", "solve_linear", "solve_nonlinear"]
+
+log = logging.getLogger(__name__)
+
+_STATES = {"svk": svk_state, "neohookean": neohookean_state}
+
+
+@dataclasses.dataclass
+class FemResult:
+    """Displacement of a layered strip and how it was obtained.
+
+    Attributes
+    ----------
+    strip : LayeredStrip
+        The meshed model.
+    material : Material
+        Materials and the full eigenstrain.
+    points : (N, 3) float array [mm]
+        Reference positions of the scalar degrees of freedom.
+    displacement : (N, 3) float array [mm]
+        Displacement at ``points``.
+    nonlinear : bool
+        Geometrically nonlinear (SVK, total Lagrangian) or small-strain solution.
+    converged : bool
+        True when the solve reached the full eigenstrain with the residual below tolerance.
+    iterations : int
+        Newton iterations over all load steps (1 for the linear solve).
+    residual : float
+        Final residual norm relative to the norm of the eigenstrain load.
+    load_steps : int
+        Accepted load increments (1 for the linear solve).
+    load_factor : float
+        Fraction of the eigenstrain reached (1 when converged).
+    seconds : float
+        Wall-clock time of the solve, including assembly [s].
+    dofs : int
+        Number of unknowns (3 per degree-of-freedom location).
+    element : str
+        Element type (``"hex2"`` triquadratic, ``"hexs2"`` serendipity, ``"hex1"`` trilinear).
+    """
+
+    strip: LayeredStrip
+    material: Material
+    points: np.ndarray
+    displacement: np.ndarray
+    nonlinear: bool
+    converged: bool
+    iterations: int
+    residual: float
+    load_steps: int
+    load_factor: float
+    seconds: float
+    dofs: int
+    element: str
+
+    @property
+    def deformed(self) -> np.ndarray:
+        """Deformed positions ``points + displacement``, (N, 3) [mm]."""
+        return self.points + self.displacement
+
+    def summary(self) -> dict:
+        return {"nonlinear": self.nonlinear, "converged": self.converged,
+                "iterations": self.iterations, "residual": self.residual,
+                "load_steps": self.load_steps, "load_factor": self.load_factor,
+                "seconds": self.seconds, "dofs": self.dofs, "element": self.element}
+
+
+def _check(strip, material):
+    if not isinstance(strip, LayeredStrip):
+        raise TypeError(f"strip must be a LayeredStrip (see hinge_mesh, strip_mesh), got "
+                        f"{type(strip).__name__}")
+    if not isinstance(material, Material):
+        raise TypeError(f"material must be a reference_fem.Material, got {type(material).__name__}")
+
+
+def constrained_dofs(strip: LayeredStrip, X: np.ndarray) -> np.ndarray:
+    """Vector dofs fixed to zero to remove the rigid-body modes (see the module docstring)."""
+    tol = 1e-9 * max(1.0, strip.length)
+    fixed = [3 * np.nonzero(np.abs(X[:, 1]) < tol)[0] + 1]
+    line = np.nonzero((np.abs(X[:, 1]) < tol) & (np.abs(X[:, 2] - strip.z_mid) < tol))[0]
+    if strip.symmetry == "xy":
+        fixed.append(3 * np.nonzero(np.abs(X[:, 0]) < tol)[0])
+        a = line[np.argmin(np.abs(X[line, 0]))]
+        fixed.append(np.array([3 * a + 2]))
+    else:
+        a = line[np.argmin(np.abs(X[line, 0]))]
+        b = line[np.argmin(X[line, 0])]
+        fixed.append(np.array([3 * a, 3 * a + 2, 3 * b + 2]))
+    return np.unique(np.concatenate(fixed))
+
+
+def _solve(K, rhs):
+    return spla.spsolve(K.tocsc(), rhs, permc_spec="MMD_AT_PLUS_A")
+
+
+def solve_linear(strip: LayeredStrip, material: Material, *, element: str = "hex2") -> FemResult:
+    """Small-strain solve with the eigenstrain as load (stress from the elastic strain only).
+
+    Parameters
+    ----------
+    strip : LayeredStrip
+        Meshed model (:func:`~reference_fem.hinge_mesh`, :func:`~reference_fem.strip_mesh`, ...).
+    material : Material
+        Elastic constants and eigenstrain.
+    element : {"hex2", "hexs2", "hex1"}
+        Element type; ``"hex2"`` (27-node triquadratic) is free of bending locking.
+
+    Returns
+    -------
+    FemResult
+        The displacement is linear in the eigenstrain.
+    """
+    _check(strip, material)
+    t0 = time.perf_counter()
+    disc = Discretisation(strip, element)
+    lam, mu, _, eps = element_fields(strip, material, disc)
+    K, f = linear_system(disc, lam, mu, eps)
+    fixed = constrained_dofs(strip, disc.X)
+    free = np.setdiff1d(np.arange(disc.ndofs), fixed)
+    u = np.zeros(disc.ndofs)
+    u[free] = _solve(K[free][:, free], f[free])
+    res = np.linalg.norm(K[free][:, free] @ u[free] - f[free]) / max(np.linalg.norm(f[free]), 1e-300)
+    ok = bool(np.all(np.isfinite(u)))
+    return FemResult(strip=strip, material=material, points=disc.X, displacement=u.reshape(-1, 3),
+                     nonlinear=False, converged=bool(ok and res < 1e-8), iterations=1, residual=float(res),
+                     load_steps=1, load_factor=1.0, seconds=time.perf_counter() - t0,
+                     dofs=disc.ndofs, element=element)
+
+
+def solve_nonlinear(strip: LayeredStrip, material: Material, *, element: str = "hex2",
+                    model: str = "neohookean", steps: int = 4, tol: float = 1e-8,
+                    max_iter: int = 15, min_step: float = 1e-3) -> FemResult:
+    """Geometrically nonlinear solve: total Lagrangian hyperelasticity with ``F = F_e F*``.
+
+    The eigenstrain is applied in load steps (``eps*(s) = s eps*``, ``0 < s <= 1``). Each step is
+    solved by Newton's method with a backtracking line search on the energy; a step that does not
+    converge in ``max_iter`` iterations is halved (down to ``min_step``), one that converges in a
+    few iterations lets the next step grow. The start of each step is extrapolated
+    from the last two converged states.
+
+    Parameters
+    ----------
+    strip : LayeredStrip
+        Meshed model.
+    material : Material
+        Elastic constants and eigenstrain (the full load).
+    element : {"hex2", "hexs2", "hex1"}
+        Element type.
+    steps : int
+        Initial number of equal load steps, >= 1.
+    model : {"neohookean", "svk"}
+        Hyperelastic law of the elastic part ``F_e``: compressible neo-Hookean (default) or
+        St Venant-Kirchhoff. Both reduce to the same Hooke's law at small strain; SVK softens
+        under strong compression, which matters for eigenstrains of tens of per cent.
+    tol : float
+        Convergence when the residual norm is below ``tol`` times the norm of the linear
+        eigenstrain load of the full step.
+    max_iter : int
+        Newton iterations per load step, >= 1.
+    min_step : float
+        Smallest load increment tried before giving up, > 0.
+
+    Returns
+    -------
+    FemResult
+        With ``converged=False`` (and the last converged state, at ``load_factor < 1``) when the
+        load stepping gave up.
+    """
+    _check(strip, material)
+    steps = v.positive_int("steps", steps)
+    tol = v.positive("tol", tol)
+    max_iter = v.positive_int("max_iter", max_iter)
+    min_step = v.positive("min_step", min_step)
+    v.choice("model", model, set(_STATES))
+    t0 = time.perf_counter()
+    disc = Discretisation(strip, element)
+    fixed = constrained_dofs(strip, disc.X)
+    free = np.setdiff1d(np.arange(disc.ndofs), fixed)
+    lam, mu, _, eps = element_fields(strip, material, disc)
+    _, f_lin = linear_system(disc, lam, mu, eps)
+    scale = max(np.linalg.norm(f_lin[free]), 1e-300)
+
+    def state(u, tangent):
+        return _STATES[model](disc, u, lam, mu, G, tangent=tangent)
+
+    u = np.zeros(disc.ndofs)
+    u_prev, s_prev = None, 0.0
+    s, ds = 0.0, 1.0 / steps
+    iterations, accepted = 0, 0
+    residual = 0.0
+    while s < 1.0 - 1e-12:
+        s_new = min(1.0, s + ds)
+        G = element_fields(strip, material, disc, scale=s_new)[2]
+        trial = u.copy()
+        if u_prev is not None:
+            trial += (s_new - s) / (s - s_prev) * (u - u_prev)
+        ok, trial, it, residual = _newton(disc, trial, state, free, scale, tol, max_iter)
+        iterations += it
+        if ok:
+            u_prev, s_prev, u, s = u, s, trial, s_new
+            accepted += 1
+            log.info("load %.4f converged in %d iterations (residual %.2e)", s, it, residual)
+            if it <= 4:
+                ds = min(2.0 * ds, 1.0)
+        else:
+            ds *= 0.5
+            log.info("load %.4f failed after %d iterations; step cut to %.4g", s_new, it, ds)
+            if ds < min_step:
+                break
+    converged = s >= 1.0 - 1e-12
+    if not converged:
+        log.warning("nonlinear solve stopped at load factor %.4f", s)
+    return FemResult(strip=strip, material=material, points=disc.X, displacement=u.reshape(-1, 3),
+                     nonlinear=True, converged=bool(converged), iterations=iterations,
+                     residual=float(residual), load_steps=accepted, load_factor=float(s),
+                     seconds=time.perf_counter() - t0, dofs=disc.ndofs, element=element)
+
+
+def _newton(disc, u, state, free, scale, tol, max_iter):
+    """Newton iterations on one load level; returns ``(ok, u, iterations, residual)``.
+
+    Converged when the residual (relative to ``scale``) is below ``tol``, or below ``1000 tol``
+    while the update has stalled at round-off (relative size < 1e-11).
+    """
+    u = u.copy()
+    energy, f, K = state(u, True)
+    r = np.linalg.norm(f[free]) / scale
+    if r < tol:
+        return True, u, 0, r
+    for it in range(1, max_iter + 1):
+        du = np.zeros_like(u)
+        Kff, rhs = K[free][:, free], -f[free]
+        shift = 0.0
+        while True:  # shift an indefinite tangent until the step goes downhill
+            try:
+                du[free] = _solve(Kff + shift * sp.diags(Kff.diagonal()) if shift else Kff, rhs)
+            except RuntimeError:  # singular tangent
+                du[free] = np.nan
+            slope = float(-rhs @ du[free])
+            if np.all(np.isfinite(du)) and slope < 0:
+                break
+            shift = 1e-4 if shift == 0.0 else 10 * shift
+            if shift > 1.0:
+                return False, u, it, r
+            log.debug("indefinite tangent; shifted by %.0e diag(K)", shift)
+        beta = 1.0
+        for trial in range(10):  # the full step is tried with its tangent, shorter ones without
+            e_try, f_try, K_try = state(u + beta * du, trial == 0)
+            r_try = np.linalg.norm(f_try[free]) / scale
+            if np.isfinite(e_try) and (e_try <= energy + 1e-4 * beta * slope or r_try < r):
+                break
+            beta *= 0.5
+        u += beta * du
+        update = beta * np.linalg.norm(du[free]) / max(np.linalg.norm(u[free]), 1e-300)
+        energy, f, K = (e_try, f_try, K_try) if K_try is not None else state(u, True)
+        r = np.linalg.norm(f[free]) / scale
+        if not np.isfinite(r):
+            return False, u, it, r
+        if r < tol or (r < 1e3 * tol and update < 1e-11):
+            return True, u, it, r
+    return False, u, max_iter, r
