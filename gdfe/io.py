@@ -33,6 +33,9 @@ def _atomic(path):
     os.close(fd)
     try:
         yield Path(tmp)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes files private; outputs are not
         os.replace(tmp, path)
     finally:
         if os.path.exists(tmp):
