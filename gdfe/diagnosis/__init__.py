@@ -1,0 +1,23 @@
+"""Diagnosis: where simulations of fabricated parts miss their measurements, and why.
+
+Fold-angle data (:func:`diagnose`): the calibrated GDFE hinge against folding tests, a
+catalogue of unmodelled physical effects fitted and ranked on held-out tests.
+Shapes (:func:`diagnose_shape`): a scanned part against the simulation of its design,
+localised to the design's regions and corrected region by region.
+
+Angles in radians, lengths in mm.
+"""
+
+from gdfe.diagnosis.angles import Diagnosis, diagnose
+from gdfe.diagnosis.effects import EFFECTS, Effect, Model, catalogue, model, timoshenko_curvature
+from gdfe.diagnosis.fit import ModelFit, evaluate, select
+from gdfe.diagnosis.forward import gdfe_check, simulate_fold, simulate_model
+from gdfe.diagnosis.where import residual_analysis
+
+__all__ = [
+    "Diagnosis", "diagnose",
+    "EFFECTS", "Effect", "Model", "catalogue", "model", "timoshenko_curvature",
+    "ModelFit", "evaluate", "select",
+    "gdfe_check", "simulate_fold", "simulate_model",
+    "residual_analysis",
+]
