@@ -1,0 +1,156 @@
+"""Shared plumbing of the figure studies: resolutions, headline numbers, output, ``main``.
+
+Every study module has ``run(resolution, out) -> dict``, ``plot(result, out)`` and
+``main(argv)``. The dict it returns has at least
+
+- ``study`` (name), ``figure`` (the paper's figure), ``title``, ``resolution``;
+- ``headlines``: list of :func:`headline` dicts, the numbers a regression test asserts;
+- ``converged``: whether every simulation of the study converged;
+- ``summary``: ``paper``, ``ours``, ``verdict``, ``discrepancy`` sentences for the report.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+RESOLUTIONS = ("coarse", "default", "fine")
+
+
+def check_resolution(resolution):
+    if resolution not in RESOLUTIONS:
+        raise ValueError(f"resolution: expected one of {', '.join(RESOLUTIONS)}, got {resolution!r}")
+    return resolution
+
+
+def headline(name, ours, paper=None, tol=None, kind="abs", expect=True, unit="", note="", paper_text=None):
+    """One headline number with the paper's value and the tolerance it is checked with.
+
+    Parameters
+    ----------
+    name : str
+    ours : float or int
+    paper : float or int, optional
+        The paper's value (None where the paper states no number).
+    tol : float, optional
+        Tolerance; its meaning depends on ``kind``.
+    kind : {"abs", "rel", "le", "ge", "eq"}
+        ``abs``: ``|ours - paper| <= tol``; ``rel``: ``|ours - paper| <= tol |paper|``;
+        ``le``/``ge``: ``ours <= tol`` / ``ours >= tol`` (a bound, no paper number needed);
+        ``eq``: ``ours == paper``.
+    expect : bool
+        Whether the check is expected to hold. A known, explained discrepancy is recorded
+        with ``expect=False``: the regression then passes as long as the discrepancy stays.
+    paper_text : str, optional
+        What the paper says, where it gives no number.
+
+    Returns
+    -------
+    dict
+        With ``holds`` (the check) and ``passed`` (``holds == expect``).
+    """
+    ours_f = float(ours)
+    if kind == "abs":
+        holds = abs(ours_f - float(paper)) <= tol
+        tol_text = f"|ours - paper| <= {tol:g}"
+    elif kind == "rel":
+        holds = abs(ours_f - float(paper)) <= tol * abs(float(paper))
+        tol_text = f"|ours - paper| <= {100 * tol:g} % of paper"
+    elif kind == "le":
+        holds = ours_f <= tol
+        tol_text = f"ours <= {tol:g}"
+    elif kind == "ge":
+        holds = ours_f >= tol
+        tol_text = f"ours >= {tol:g}"
+    elif kind == "eq":
+        holds = ours_f == float(paper)
+        tol_text = "ours == paper"
+    else:
+        raise ValueError(f"kind: expected abs, rel, le, ge or eq, got {kind!r}")
+    if not math.isfinite(ours_f):
+        holds = False
+    if unit:
+        tol_text += f" {unit}" if kind in ("abs", "le", "ge") else ""
+    if kind == "eq" and ours_f.is_integer():
+        ours_f = int(ours_f)
+    return {"name": name, "ours": ours_f,
+            "paper": paper, "paper_text": paper_text, "tolerance": tol_text, "unit": unit,
+            "expect": bool(expect), "holds": bool(holds), "passed": bool(holds) == bool(expect), "note": note}
+
+
+def pyplot():
+    """matplotlib's pyplot with the non-interactive Agg backend."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def finish(result, out, plot):
+    """Write ``NAME.json`` and ``NAME.png`` (via ``plot``) into ``out``; return ``result``."""
+    if out is None:
+        return result
+    from gdfe.io import write_json
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    name = result["study"]
+    png = out / f"{name}.png"
+    result["files"] = {"png": png.name, "json": f"{name}.json"}
+    plot(result, out)
+    write_json(out / f"{name}.json", result)
+    return result
+
+
+def format_headlines(result):
+    lines = [f"{result['figure']}: {result['title']}  (resolution {result['resolution']})"]
+    for h in result["headlines"]:
+        paper = h["paper"] if h["paper"] is not None else (h["paper_text"] or "-")
+        ours = h["ours"]
+        ours = f"{ours:.4g}" if isinstance(ours, float) else ours
+        paper = f"{paper:.4g}" if isinstance(paper, float) else paper
+        state = "ok" if h["passed"] else "REGRESSION"
+        lines.append(f"  {h['name']}: ours {ours} {h['unit']}  paper {paper}  [{h['tolerance']}; "
+                     f"{'holds' if h['holds'] else 'does not hold'}, expected {'to hold' if h['expect'] else 'not to'}: {state}]")
+    s = result.get("summary", {})
+    if s.get("verdict"):
+        lines.append(f"  verdict: {s['verdict']}")
+    if not result.get("converged", True):
+        lines.append("  WARNING: a simulation did not converge")
+    return "\n".join(lines)
+
+
+def study_main(module, argv=None):
+    """The ``__main__`` of a study: ``python -m studies.NAME [--out DIR] [--resolution R] [--json]``."""
+    doc = (module.__doc__ or "").strip().splitlines()
+    p = argparse.ArgumentParser(prog=f"python -m {module.__name__}", description=doc[0] if doc else None)
+    p.add_argument("--out", type=Path, default=None,
+                   help=f"output directory (default out/{module.NAME})")
+    p.add_argument("--resolution", choices=RESOLUTIONS, default="default")
+    p.add_argument("--json", action="store_true", help="print the numbers as JSON")
+    args = p.parse_args(argv)
+    out = args.out if args.out is not None else Path("out") / module.NAME
+    return run_and_print(module, args.resolution, out, args.json)
+
+
+def run_and_print(module, resolution, out, as_json):
+    result = module.run(resolution=resolution, out=out)
+    if as_json:
+        from gdfe.cli import _json_default
+
+        print(json.dumps(result, indent=2, default=_json_default))
+    else:
+        print(format_headlines(result))
+        if out is not None:
+            print(f"  wrote {Path(out) / (module.NAME + '.png')} and {module.NAME}.json")
+    ok = result.get("converged", True) and all(h["passed"] for h in result["headlines"])
+    return 0 if ok else 1
+
+
+def exit_main(module):
+    sys.exit(study_main(module))
