@@ -1,0 +1,85 @@
+"""``gdfe diagnose`` (fold-angle data) and ``gdfe diagnose-shape`` (scans against simulations)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from gdfe.cli import emit
+
+__all__ = ["register"]
+
+
+def register(sub):
+    p = sub.add_parser(
+        "diagnose", help="where folding tests and the calibrated GDFE hinge part ways, and why",
+        description="Fit the calibrated GDFE hinge (Eq. 1-3) to folding tests, locate its residuals, "
+                    "and rank a catalogue of physical effects by held-out error.")
+    p.add_argument("data", type=Path, help="CSV with columns L_mm, d_mm, h_mm, alpha_rad (more allowed)")
+    p.add_argument("--json", dest="json_out", metavar="OUT.json",
+                   help="write the diagnosis as JSON here ('-': print it instead of the summary)")
+    p.add_argument("--report", type=Path, metavar="DIR", help="write plots and summary.md here")
+    p.add_argument("--group", help="column with a group label for leave-one-group-out "
+                                   "(default: 'group' if present)")
+    p.add_argument("--no-pairs", action="store_true", help="fit single effects only")
+    p.add_argument("--check", choices=["none", "coarse", "default", "fine"], default="coarse",
+                   help="resolution of the GDFE solves that check the closed forms (default coarse)")
+    p.set_defaults(func=_cmd_diagnose)
+
+    p = sub.add_parser(
+        "diagnose-shape", help="where a scanned part deviates from the simulation of its design",
+        description="Align a measured shape (PLY, VTU, OBJ or CSV of x,y,z) to the simulated design, "
+                    "report the deviation per element and region, and fit a per-region correction "
+                    "of the contraction ratio.")
+    p.add_argument("design", type=Path, help="design file (.toml)")
+    p.add_argument("measured", type=Path, help="point cloud or mesh: .ply, .vtu, .obj or .csv (x,y,z)")
+    p.add_argument("--json", dest="json_out", metavar="OUT.json",
+                   help="write the result as JSON here ('-': print it instead of the summary)")
+    p.add_argument("--report", type=Path, metavar="DIR", help="write plots and summary.md here")
+    p.add_argument("--align", choices=["auto", "correspondence", "icp"], default="auto",
+                   help="correspondences (a mesh of the design) or ICP; default: decide from the file")
+    p.add_argument("--no-correct", action="store_true", help="skip the per-region correction fit")
+    p.set_defaults(func=_cmd_diagnose_shape)
+
+
+def _write_json(path, obj):
+    from gdfe.io import write_json
+
+    return write_json(path, obj)
+
+
+def _cmd_diagnose(args):
+    from gdfe.diagnosis.angles import diagnose
+
+    diag = diagnose(args.data, group=args.group, pairs=not args.no_pairs,
+                    check=None if args.check == "none" else args.check)
+    obj = diag.as_dict()
+    text = diag.text()
+    if args.report:
+        from gdfe.diagnosis.report import write_report
+
+        files = write_report(diag, args.report)
+        obj["report"] = files
+        text += f"\nreport: {files['summary']}"
+    if args.json_out and args.json_out != "-":
+        _write_json(args.json_out, obj)
+        text += f"\nwrote {args.json_out}"
+    emit(obj, args.json_out == "-", text)
+    return 0
+
+
+def _cmd_diagnose_shape(args):
+    from gdfe.diagnosis.shape import diagnose_shape
+
+    res = diagnose_shape(args.design, args.measured, align=args.align, correct=not args.no_correct)
+    obj = res.as_dict()
+    text = res.text()
+    if args.report:
+        from gdfe.diagnosis.report import write_shape_report
+
+        obj["report"] = write_shape_report(res, args.report)
+        text += f"\nreport: {obj['report']['summary']}"
+    if args.json_out and args.json_out != "-":
+        _write_json(args.json_out, obj)
+        text += f"\nwrote {args.json_out}"
+    emit(obj, args.json_out == "-", text)
+    return 0 if res.converged else 3
