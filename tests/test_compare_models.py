@@ -51,3 +51,5 @@ def test_coarse_run_headline_numbers(tmp_path):
         assert s["gdfe_fitted_max_mm"] < 0.5
     for rows in res["runtime"]["models"].values():
         assert len(rows) >= 3 and all(r["converged"] for r in rows)
+    assert res["converged"]
+    assert all(h["passed"] for h in res["headlines"]), [h for h in res["headlines"] if not h["passed"]]
