@@ -295,7 +295,8 @@ class StripPattern:
                            regions2d=regions, meta=meta)
 
 
-_ROUNDING = {"nearest": lambda x: np.floor(x + 0.5), "floor": np.floor, "ceil": np.ceil}
+_ROUNDING = {"nearest": lambda x: np.floor(x + 0.5), "floor": np.floor, "ceil": np.ceil,
+             "carry": lambda x: np.floor(x + 0.5)}
 
 
 def strip_pattern(couples, h=DEFAULT_H, R=0.7, cell=None, w_min=None, rounding="nearest", clamp=False):
@@ -320,8 +321,14 @@ def strip_pattern(couples, h=DEFAULT_H, R=0.7, cell=None, w_min=None, rounding="
         parts no wider than 0.125 mm.
     w_min : float [mm], optional
         Narrowest contracting feature the printer makes; must be a whole number of cells.
-    rounding : {"nearest", "floor", "ceil"}
-        How ``L_c / w_min`` is rounded to a number of blocks ("nearest": half up).
+    rounding : {"nearest", "floor", "ceil", "carry"}
+        How ``L_c / w_min`` is rounded to a number of blocks. "nearest" rounds each couple
+        on its own (halves up). "carry" rounds to the nearest too, but adds to each couple the
+        turn the couples before it lost or gained by rounding (as far as the couple can take
+        it: never below zero blocks, never the opposite way, straight couples stay straight),
+        so the printed strip's accumulated turn stays within half a block of the target's;
+        couples shorter than a block, like the hinges of :func:`with_hinges`, then keep
+        their turn.
     clamp : bool
         A couple tighter than the film can fold (``L_c > L``) raises ValueError unless
         ``clamp``, which prints it fully contracting (the maximum curvature, ``(1-R)/h``).
@@ -355,10 +362,17 @@ def strip_pattern(couples, h=DEFAULT_H, R=0.7, cell=None, w_min=None, rounding="
     L_cp = np.zeros(k)
     blocks = np.zeros(k, int)
     clamped = np.zeros(k, bool)
+    turn_per_block = w * (1.0 - R) / h
+    debt = 0.0  # target minus printed accumulated turn [rad] ("carry")
     for i, c in enumerate(couples):
         n = max(1, int(round(c.L / cell)))
         L_c[i] = abs(c.angle) * h / (1.0 - R)
-        nb = int(_ROUNDING[rounding](L_c[i] / w - 1e-12)) if L_c[i] > 0 else 0
+        want = L_c[i] / w
+        if rounding == "carry" and c.angle != 0:
+            want = max(0.0, math.copysign(1.0, c.angle) * (c.angle + debt)) / turn_per_block
+        nb = int(_ROUNDING[rounding](want - 1e-12)) if want > 0 else 0
+        if rounding == "carry" and L_c[i] <= n * cell:
+            nb = min(nb, n // b)  # a carried turn never makes a feasible couple infeasible
         col = np.full(n, int(Material.RIGID))
         code = int(Material.CONTRACT_TOP if c.curvature > 0 else Material.CONTRACT_BOTTOM)
         if nb * b > n:
@@ -379,6 +393,7 @@ def strip_pattern(couples, h=DEFAULT_H, R=0.7, cell=None, w_min=None, rounding="
                 col[s0:s0 + b] = code
             L_cp[i] = float((col == code).sum() * cell) if nb else 0.0
         blocks[i] = nb
+        debt += c.angle - math.copysign(1.0, c.angle) * (1.0 - R) * L_cp[i] / h
         materials.append(col)
         segments.append(np.full(n, i))
     angle = np.array([c.angle for c in couples])
@@ -490,24 +505,31 @@ def simulate_strip(design, tol=1e-7, max_iter=400):
 
 
 def strip_midline(result, design=None):
-    """Mid-line of a simulated strip: the centroid of every column of cells.
+    """Mid-line of a simulated strip: its two end faces' centroids and every column's centroid.
 
     Returns
     -------
-    s : (c,) float array [mm]
-        Arc length of each column's centre in the flat print, from the strip's start.
-    uv : (c, 2) float array [mm]
-        The centroids' (x, z) coordinates: the curve in the plane the strip curls in.
+    s : (c + 2,) float array [mm]
+        Arc length of each point in the flat print, from the strip's start (0 and the strip
+        length for the end faces, column centres between).
+    uv : (c + 2, 2) float array [mm]
+        The points' (x, z) coordinates: the curve in the plane the strip curls in.
     off_plane : float [mm]
-        Largest spread of the centroids along y (0 for a strip that curls in a plane).
+        Largest spread of the points along y (0 for a strip that curls in a plane).
     """
     from gdfe.measure import _points_design, column_frames
 
     points, design = _points_design(result, design)
     cols, _, centre = column_frames(points, design)
+    flat = design.mesh.points
     dx = float(design.mesh.spacing[0])
-    s = (cols + 0.5) * dx
-    return s, centre[:, [0, 2]], float(np.ptp(centre[:, 1]))
+    x0, x1 = flat[:, 0].min(), flat[:, 0].max()
+    tol = 1e-9 * max(1.0, abs(x1))
+    first = points[np.abs(flat[:, 0] - x0) <= tol].mean(axis=0)
+    last = points[np.abs(flat[:, 0] - x1) <= tol].mean(axis=0)
+    pts = np.vstack([first, centre, last])
+    s = np.concatenate([[0.0], (cols + 0.5) * dx, [x1 - x0]])
+    return s, pts[:, [0, 2]], float(np.ptp(pts[:, 1]))
 
 
 def align_2d(source, target, weights=None):

@@ -7,6 +7,8 @@ Every study module has ``run(resolution, out) -> dict``, ``plot(result, out)`` a
 - ``headlines``: list of :func:`headline` dicts, the numbers a regression test asserts;
 - ``converged``: whether every simulation of the study converged;
 - ``summary``: ``paper``, ``ours``, ``verdict``, ``discrepancy`` sentences for the report.
+
+Keys starting with ``_`` (simulated shapes kept for the plot) are left out of the JSON.
 """
 
 from __future__ import annotations
@@ -24,6 +26,12 @@ def check_resolution(resolution):
     if resolution not in RESOLUTIONS:
         raise ValueError(f"resolution: expected one of {', '.join(RESOLUTIONS)}, got {resolution!r}")
     return resolution
+
+
+def n_jobs(resolution):
+    """Worker processes for a study's sweep: 1 at coarse resolution (process start-up would
+    cost more than the work), else the default of :func:`gdfe.parallel.parallel_map`."""
+    return 1 if resolution == "coarse" else None
 
 
 def headline(name, ours, paper=None, tol=None, kind="abs", expect=True, unit="", note="", paper_text=None):
@@ -103,8 +111,13 @@ def finish(result, out, plot):
     png = out / f"{name}.png"
     result["files"] = {"png": png.name, "json": f"{name}.json"}
     plot(result, out)
-    write_json(out / f"{name}.json", result)
+    write_json(out / f"{name}.json", public(result))
     return result
+
+
+def public(result):
+    """The result without its private entries (keys starting with ``_``: shapes kept for plotting)."""
+    return {k: v for k, v in result.items() if not k.startswith("_")}
 
 
 def format_headlines(result):
@@ -143,7 +156,7 @@ def run_and_print(module, resolution, out, as_json):
     if as_json:
         from gdfe.cli import _json_default
 
-        print(json.dumps(result, indent=2, default=_json_default))
+        print(json.dumps(public(result), indent=2, default=_json_default))
     else:
         print(format_headlines(result))
         if out is not None:

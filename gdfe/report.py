@@ -1,0 +1,238 @@
+"""The HTML validation report: every study run, its figures, paper-vs-ours numbers, versions.
+
+``build_report(out, resolution)`` runs each study of the registry (``studies.cli.STUDIES``)
+into ``out/NAME/``, then writes ``out/index.html`` (self-contained apart from the PNGs
+beside it; no network access) and ``out/report.json``. A study whose module is not
+importable is skipped and noted; one that raises is reported with its error.
+"""
+
+from __future__ import annotations
+
+import datetime
+import html
+import importlib
+import logging
+import platform
+import sys
+import time
+import traceback
+from pathlib import Path
+
+__all__ = ["build_report", "software_versions"]
+
+log = logging.getLogger(__name__)
+
+
+def software_versions():
+    """Versions of Python, the platform and the packages the studies use."""
+    out = {"python": platform.python_version(), "platform": platform.platform()}
+    for name in ("gdfe", "numpy", "scipy", "matplotlib", "skfem", "joblib", "tqdm", "pyvista", "meshio"):
+        try:
+            mod = importlib.import_module(name)
+            out[name] = getattr(mod, "__version__", "installed")
+        except Exception:  # not installed, or fails to import: say so
+            out[name] = "not available"
+    return out
+
+
+def _run_one(name, module_path, resolution, out):
+    rec = {"name": name, "module": module_path, "dir": name}
+    t0 = time.perf_counter()
+    try:
+        module = importlib.import_module(module_path)
+    except ModuleNotFoundError as exc:
+        rec.update(status="skipped", note=f"module {module_path} is not available ({exc})")
+        return rec, None
+    try:
+        result = module.run(resolution=resolution, out=out / name)
+    except Exception as exc:  # a failing study must not stop the report
+        log.exception("study %s failed", name)
+        rec.update(status="error", note=f"{type(exc).__name__}: {exc}",
+                   traceback=traceback.format_exc(limit=4), seconds=time.perf_counter() - t0)
+        return rec, None
+    rec["seconds"] = time.perf_counter() - t0
+    heads = result.get("headlines", []) if isinstance(result, dict) else []
+    rec["headlines"] = len(heads)
+    rec["passed"] = sum(bool(h.get("passed")) for h in heads)
+    rec["converged"] = bool(result.get("converged", True)) if isinstance(result, dict) else True
+    rec["status"] = "ok" if rec["passed"] == rec["headlines"] and rec["converged"] else "fail"
+    pngs = sorted(p.name for p in (out / name).glob("*.png"))
+    main = result.get("files", {}).get("png") if isinstance(result, dict) else None
+    rec["figures"] = [main] if main in pngs else pngs
+    rec["other_files"] = [p for p in pngs if p not in rec["figures"]]
+    return rec, result
+
+
+def build_report(out, resolution="default", names=None, progress=None):
+    """Run the studies and write ``out/index.html``.
+
+    Parameters
+    ----------
+    out : str or Path
+        Output directory (created).
+    resolution : {"coarse", "default", "fine"}
+    names : list of str, optional
+        Studies to run (default: all of ``studies.cli.STUDIES``).
+    progress : bool, optional
+        Show a progress bar (default: when stderr is a terminal).
+
+    Returns
+    -------
+    dict
+        ``index`` (path of index.html), ``ok`` (every study ran, converged and passed its
+        regression checks; skipped studies do not count against it), ``studies`` (one
+        record per study), ``versions``.
+    """
+    from studies.cli import STUDIES
+
+    if resolution not in ("coarse", "default", "fine"):
+        raise ValueError(f"resolution: expected coarse, default or fine, got {resolution!r}")
+    names = list(STUDIES) if names is None else list(names)
+    unknown = [n for n in names if n not in STUDIES]
+    if unknown:
+        raise ValueError(f"names: unknown studies {unknown}; expected some of {', '.join(STUDIES)}")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    if progress is None:
+        progress = sys.stderr.isatty()
+    try:
+        from tqdm.auto import tqdm
+    except ModuleNotFoundError:
+        tqdm = None
+    t0 = time.perf_counter()
+    records, results = [], {}
+    bar = tqdm(names, desc="report", disable=not progress) if tqdm else names
+    for name in bar:
+        if tqdm and progress:
+            bar.set_postfix_str(name)
+        rec, res = _run_one(name, STUDIES[name], resolution, out)
+        records.append(rec)
+        results[name] = res
+    summary = {
+        "resolution": resolution,
+        "generated": datetime.datetime.now().isoformat(timespec="seconds"),
+        "seconds": time.perf_counter() - t0,
+        "versions": software_versions(),
+        "studies": records,
+        "ok": all(r["status"] in ("ok", "skipped") for r in records),
+    }
+    index = out / "index.html"
+    index.write_text(_html(summary, results))
+    from gdfe.io import write_json
+
+    write_json(out / "report.json", {**summary, "results": {
+        k: _public(v) for k, v in results.items() if isinstance(v, dict)}})
+    summary["index"] = str(index)
+    return summary
+
+
+def _public(result):
+    return {k: v for k, v in result.items() if not str(k).startswith("_")}
+
+
+def _fmt(v):
+    if v is None:
+        return ""
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return html.escape(str(v))
+
+
+_CSS = """
+body { font-family: sans-serif; max-width: 1150px; margin: 2em auto; color: #222; line-height: 1.4; }
+h1 { font-size: 1.6em; } h2 { border-bottom: 1px solid #ccc; padding-bottom: .2em; margin-top: 2em; }
+table { border-collapse: collapse; margin: .8em 0; font-size: .9em; }
+th, td { border: 1px solid #ccc; padding: .25em .5em; text-align: left; vertical-align: top; }
+th { background: #f3f3f3; }
+.pass { color: #137333; font-weight: bold; } .fail { color: #b3261e; font-weight: bold; }
+.skip { color: #8a6d00; font-weight: bold; }
+img { max-width: 100%; border: 1px solid #ddd; margin: .5em 0; }
+.note { color: #555; font-size: .9em; }
+"""
+
+
+def _status(s):
+    cls = {"ok": "pass", "fail": "fail", "error": "fail", "skipped": "skip"}.get(s, "")
+    return f'<span class="{cls}">{html.escape(s)}</span>'
+
+
+def _html(summary, results):
+    e = html.escape
+    parts = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+             "<title>gdfe validation report</title>", f"<style>{_CSS}</style></head><body>",
+             "<h1>gdfe validation report: Kwok &amp; Chen 2017, GDFE</h1>",
+             f"<p>Resolution <b>{e(summary['resolution'])}</b>, generated {e(summary['generated'])} in "
+             f"{summary['seconds']:.0f} s. Units: mm and rad. Each study computes the numbers of one figure "
+             "of the paper; each headline number is checked against the paper's value with the stated "
+             "tolerance. <i>Expected</i> says whether the check is expected to hold: a known, explained "
+             "discrepancy is kept as a regression check that it stays as measured.</p>"]
+    # overview
+    parts.append("<h2>Overview</h2><table><tr><th>study</th><th>status</th><th>headlines passing</th>"
+                 "<th>time [s]</th><th>figure</th></tr>")
+    for r in summary["studies"]:
+        figs = " ".join(f'<a href="{e(r["dir"])}/{e(f)}">{e(f)}</a>' for f in r.get("figures", []))
+        hl = f"{r.get('passed', 0)}/{r.get('headlines', 0)}" if r["status"] in ("ok", "fail") else ""
+        parts.append(f'<tr><td><a href="#{e(r["name"])}">{e(r["name"])}</a></td><td>{_status(r["status"])}</td>'
+                     f"<td>{hl}</td><td>{r.get('seconds', 0):.1f}</td><td>{figs}</td></tr>")
+    parts.append("</table>")
+    # per study
+    for r in summary["studies"]:
+        res = results.get(r["name"])
+        title = res.get("title", "") if isinstance(res, dict) else ""
+        fig = res.get("figure", "") if isinstance(res, dict) else ""
+        parts.append(f'<h2 id="{e(r["name"])}">{e(r["name"])}: {e(str(fig))} {e(str(title))}</h2>')
+        if r["status"] in ("skipped", "error"):
+            parts.append(f'<p>{_status(r["status"])}: {e(r.get("note", ""))}</p>')
+            if r.get("traceback"):
+                parts.append(f"<pre>{e(r['traceback'])}</pre>")
+            continue
+        for f in r.get("figures", []):
+            parts.append(f'<img src="{e(r["dir"])}/{e(f)}" alt="{e(r["name"])} figure {e(f)}">')
+        if r.get("other_files"):
+            parts.append('<p class="note">Other files: ' + ", ".join(
+                f'<a href="{e(r["dir"])}/{e(f)}">{e(f)}</a>' for f in r["other_files"]) + "</p>")
+        heads = res.get("headlines", [])
+        if heads:
+            parts.append("<table><tr><th>headline</th><th>paper</th><th>ours</th><th>tolerance</th>"
+                         "<th>holds</th><th>expected</th><th>regression</th><th>note</th></tr>")
+            for h in heads:
+                paper = h.get("paper")
+                paper = _fmt(paper) if paper is not None else e(h.get("paper_text") or "(no number)")
+                if h.get("paper") is not None and h.get("paper_text"):
+                    paper += f'<br><span class="note">{e(h["paper_text"])}</span>'
+                unit = e(h.get("unit", ""))
+                parts.append(
+                    f"<tr><td>{e(h['name'])}</td><td>{paper}</td><td>{_fmt(h['ours'])} {unit}</td>"
+                    f"<td>{e(h.get('tolerance', ''))}</td><td>{_fmt(h.get('holds'))}</td>"
+                    f"<td>{'holds' if h.get('expect', True) else 'does not hold'}</td>"
+                    f"<td>{'<span class=pass>pass</span>' if h.get('passed') else '<span class=fail>FAIL</span>'}</td>"
+                    f"<td class=note>{e(h.get('note', ''))}</td></tr>")
+            parts.append("</table>")
+        if not r.get("converged", True):
+            parts.append('<p class="fail">A simulation of this study did not converge.</p>')
+        s = res.get("summary", {}) if isinstance(res, dict) else {}
+        if s:
+            parts.append("<p>" + "<br>".join(f"<b>{e(k)}</b>: {e(str(v))}" for k, v in s.items() if v) + "</p>")
+    # closing note
+    parts.append("<h2>Closing note</h2><table><tr><th>figure</th><th>paper</th><th>ours</th><th>verdict</th>"
+                 "<th>discrepancy: measured cause or open question</th></tr>")
+    for r in summary["studies"]:
+        res = results.get(r["name"])
+        s = res.get("summary", {}) if isinstance(res, dict) else {}
+        if r["status"] in ("skipped", "error"):
+            parts.append(f"<tr><td>{e(r['name'])}</td><td colspan=4>{_status(r['status'])}: "
+                         f"{e(r.get('note', ''))}</td></tr>")
+            continue
+        fig = res.get("figure", r["name"]) if isinstance(res, dict) else r["name"]
+        parts.append(f"<tr><td>{e(str(fig))}</td><td>{e(str(s.get('paper', '')))}</td>"
+                     f"<td>{e(str(s.get('ours', '')))}</td><td>{e(str(s.get('verdict', '')))}</td>"
+                     f"<td>{e(str(s.get('discrepancy', '')))}</td></tr>")
+    parts.append("</table>")
+    # versions
+    parts.append("<h2>Software</h2><table>")
+    for k, v in summary["versions"].items():
+        parts.append(f"<tr><th>{e(k)}</th><td>{e(str(v))}</td></tr>")
+    parts.append("</table></body></html>")
+    return "\n".join(parts) + "\n"

@@ -1,0 +1,115 @@
+"""The study, report and calibrate commands, and the HTML report."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import gdfe
+from gdfe.cli import main
+from studies.cli import STUDIES
+
+FIGURES = ("fig02", "fig06", "fig07", "fig08", "fig09", "fig10", "fig11")
+
+
+def test_registry_lists_every_figure_and_the_other_studies():
+    for name in FIGURES:
+        assert name in STUDIES
+    assert STUDIES["compare"] == "studies.compare_models"
+    assert STUDIES["blind-diagnosis"] == "studies.blind_diagnosis"
+
+
+@pytest.mark.parametrize("model, K, r2", [("eq1", 0.0608, 0.576), ("eq1-d1", 0.3708, 0.796)])
+def test_calibrate_prints_the_fit(capsys, model, K, r2):
+    assert main(["calibrate", str(gdfe.TABLE1), "--model", model, "--json", "--boot", "200"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["model"] == model and out["n"] == 18
+    assert out["K"] == pytest.approx(K, abs=5e-4) and out["r2"] == pytest.approx(r2, abs=2e-3)
+    assert {"K", "r2", "rmse", "n", "model"} <= set(out)
+
+
+def test_calibrate_power_and_text(capsys):
+    assert main(["calibrate", str(gdfe.TABLE1), "--model", "power", "--boot", "100", "--d", "0.33"]) == 0
+    text = capsys.readouterr().out
+    for word in ("model", "K", "p ", "r2", "rmse", "n ", "R "):
+        assert word in text
+    assert main(["calibrate", str(gdfe.TABLE1), "--model", "all", "--json", "--boot", "0"]) == 0
+    assert [f["model"] for f in json.loads(capsys.readouterr().out)] == ["eq1", "eq1-d1", "power"]
+
+
+def test_calibrate_errors(tmp_path, capsys):
+    assert main(["calibrate", str(tmp_path / "none.csv")]) == 1
+    assert "not found" in capsys.readouterr().err
+    bad = tmp_path / "bad.csv"
+    bad.write_text("L_mm,d_mm,h_mm,alpha_rad\n1.0,-0.2,0.29,1.0\n")
+    assert main(["calibrate", str(bad)]) == 1
+    assert "d_mm" in capsys.readouterr().err
+
+
+def test_study_command_writes_png_and_json(tmp_path, capsys):
+    assert main(["study", "fig02", "--out", str(tmp_path), "--resolution", "coarse", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["study"] == "fig02" and all(h["passed"] for h in out["headlines"])
+    assert (tmp_path / "fig02.png").is_file() and (tmp_path / "fig02.json").is_file()
+
+
+def test_study_runs_as_a_module(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "studies.fig02_calibration", "--out", str(tmp_path),
+                           "--resolution", "coarse"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "K, regressor sqrt(h/d)*L" in proc.stdout
+    assert (tmp_path / "fig02.png").is_file()
+
+
+def test_report_links_figures_and_skips_missing_studies(tmp_path, monkeypatch):
+    from gdfe.report import build_report
+    import studies.cli
+
+    monkeypatch.setitem(studies.cli.STUDIES, "missing", "studies.no_such_study")
+    summary = build_report(tmp_path, resolution="coarse", names=["fig02", "missing"], progress=False)
+    html = (tmp_path / "index.html").read_text()
+    assert '<img src="fig02/fig02.png"' in html
+    assert "Closing note" in html and "numpy" in html and "scipy" in html and "gdfe" in html
+    assert "0.3706" in html  # the paper's number beside ours
+    rec = {r["name"]: r for r in summary["studies"]}
+    assert rec["fig02"]["status"] == "ok" and rec["missing"]["status"] == "skipped"
+    assert "skipped" in html
+    assert summary["ok"]
+    assert json.loads((tmp_path / "report.json").read_text())["results"]["fig02"]["study"] == "fig02"
+
+
+def test_report_records_a_failing_study(tmp_path, monkeypatch):
+    from gdfe.report import build_report
+    import studies.cli
+
+    monkeypatch.setitem(studies.cli.STUDIES, "broken", "studies._broken_for_test")
+    module = type(sys)("studies._broken_for_test")
+
+    def run(resolution, out):
+        raise RuntimeError("boom")
+
+    module.run = run
+    monkeypatch.setitem(sys.modules, "studies._broken_for_test", module)
+    summary = build_report(tmp_path, resolution="coarse", names=["broken"], progress=False)
+    assert summary["studies"][0]["status"] == "error" and not summary["ok"]
+    assert "boom" in (tmp_path / "index.html").read_text()
+
+
+def test_report_rejects_unknown_names(tmp_path):
+    from gdfe.report import build_report
+
+    with pytest.raises(ValueError, match="unknown studies"):
+        build_report(tmp_path, names=["fig99"])
+    with pytest.raises(ValueError, match="resolution"):
+        build_report(tmp_path, resolution="huge")
+
+
+@pytest.mark.slow
+def test_full_coarse_report_links_all_seven_figures(tmp_path):
+    assert main(["report", "--out", str(tmp_path), "--resolution", "coarse"]) in (0, 1)
+    html = (tmp_path / "index.html").read_text()
+    for name in FIGURES:
+        assert f'<img src="{name}/{name}.png"' in html, name
+        assert Path(tmp_path / name / f"{name}.png").is_file()
