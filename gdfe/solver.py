@@ -36,7 +36,7 @@ from gdfe._validate import check_int, check_positive
 from gdfe.design import Design, Material
 
 __all__ = ["Result", "ConvergenceError", "simulate", "rest_shapes", "system_matrix", "energy",
-           "Solver"]
+           "Solver", "METHODS", "auto_method", "factor_backend"]
 
 log = logging.getLogger(__name__)
 
@@ -78,7 +78,7 @@ class Result:
     frame_iterations : list of int
         Iterations per frame.
     method : str
-        ``"anderson"`` or ``"plain"``.
+        The method that ran: ``"newton"``, ``"newton-cg"``, ``"anderson"`` or ``"plain"``.
     timings : dict
         Seconds spent in factorisation, orientation steps and assembly steps.
     """
@@ -175,9 +175,10 @@ def _rotations(S, tol=1e-12, max_iter=30):
 
     Returns the rotations and ``tr(Q^T S)``, the sum of the signed singular values.
     Matrices with a positive determinant go through the scaled Newton iteration for the
-    polar factor (quadratic convergence, all elements at once); the few with
-    ``det(S) <= 0`` (a cell turned inside out) go through an SVD whose smallest singular
-    direction is flipped, which gives the closest proper rotation.
+    polar factor (quadratic convergence, all elements at once, each stopping when its
+    own update is below ``tol``); the few with ``det(S) <= 0`` (a cell turned inside out)
+    go through an SVD whose smallest singular direction is flipped, which gives the
+    closest proper rotation.
     """
     m = S.shape[0]
     Q = np.empty_like(S)
@@ -187,16 +188,36 @@ def _rotations(S, tol=1e-12, max_iter=30):
     det = _det3(A)
     good = det > 1e-10
     idx = np.nonzero(good)[0]
-    X = A[idx]
+    # the nine entries as rows of a (9, k) array: the iteration runs on contiguous vectors
+    X = np.ascontiguousarray(A[idx].reshape(-1, 9).T)
+    out = np.empty_like(X)
+    active = np.arange(idx.size)
+    C = np.empty_like(X)
     for _ in range(max_iter):
-        d = _det3(X)
-        g = np.abs(d) ** (-1.0 / 3.0)
-        Xn = 0.5 * (g[:, None, None] * X + _cof3(X) / (g * d)[:, None, None])
-        delta = np.abs(Xn - X).max(axis=(1, 2))
-        X = Xn
-        if delta.max() < tol:
+        if not active.size:
             break
-    Q[idx] = X
+        a, b, c, d, e, f, g, h, i = X
+        C[0], C[1], C[2] = e * i - f * h, f * g - d * i, d * h - e * g
+        C[3], C[4], C[5] = c * h - b * i, a * i - c * g, b * g - a * h
+        C[6], C[7], C[8] = b * f - c * e, c * d - a * f, a * e - b * d
+        dt = a * C[0] + b * C[1] + c * C[2]
+        gm = 1.0 / np.cbrt(np.abs(dt))
+        Xn = 0.5 * (gm * X + C / (gm * dt))
+        done = np.abs(Xn - X).max(axis=0) < tol
+        if done.all():
+            out[:, active] = Xn
+            active = active[:0]
+            break
+        if done.any():
+            out[:, active[done]] = Xn[:, done]
+            keep = ~done
+            active, X = active[keep], Xn[:, keep]
+            C = np.empty_like(X)
+        else:
+            X = Xn
+    if active.size:  # not converged within max_iter: keep the last iterate
+        out[:, active] = X
+    Q[idx] = out.T.reshape(-1, 3, 3)
     bad = np.nonzero(~good)[0]
     if bad.size:
         U, _, Vt = np.linalg.svd(S[bad])
@@ -257,10 +278,13 @@ class Solver:
         t0 = time.perf_counter()
         P, Psq = self._rest(activation)
         X = V[self.cells]
-        X = X - X.mean(axis=1, keepdims=True)
+        X -= X.mean(axis=1, keepdims=True)
         S = np.einsum("mki,mkj->mij", X, P)
-        Q, ssum = _rotations(S)
-        E = float(self.w @ (np.einsum("mki,mki->m", X, X) + Psq - 2.0 * ssum))
+        Q, _ = _rotations(S)
+        # sum of squares of the misfit itself, not |X|^2 + |P|^2 - 2 tr(Q^T S), which
+        # cancels to round-off when a cell reaches its rest shape
+        X -= np.matmul(P, Q.transpose(0, 2, 1))
+        E = float(self.w @ np.einsum("mki,mki->m", X, X))
         self._last_S = S
         self.timings["orientation"] += time.perf_counter() - t0
         return Q, max(E, 0.0)
@@ -348,37 +372,204 @@ class Solver:
         (3n, 3n) sparse matrix
             Unknowns ordered vertex-major (``3 v + c``).
         """
+        RG = self._hessian_blocks(Q, S, activation, floor=1.0)
+        m = self.cells.shape[0]
+        if getattr(self, "_L3", None) is None:
+            self._L3 = sp.kron(self.L, sp.eye(3), format="csr")
+        J = sp.csr_matrix((RG.ravel(), self._G_index), shape=(3 * m, 3 * self.n))
+        return (2.0 * (1.0 + mu)) * self._L3 - 2.0 * (J.T @ J)
+
+    def _hessian_setup(self, activation):
+        """Per-cell constants of :meth:`hessian` that depend on the rest shapes only."""
+        if getattr(self, "_hess_key", None) == float(activation):
+            return
         P, _ = self._rest(activation)
         m = self.cells.shape[0]
-        if getattr(self, "_hess_key", None) != float(activation):
-            C = np.einsum("mki,mkj->mij", P, P)
-            M0 = np.trace(C, axis1=1, axis2=2)[:, None, None] * np.eye(3) - C
-            lam0, W0 = np.linalg.eigh(M0)
-            self._M0is = np.einsum("mij,mj,mkj->mik", W0, 1.0 / np.sqrt(np.maximum(lam0, 1e-300)), W0)
-            Kx = np.zeros(P.shape + (3,))  # [p]x
-            Kx[..., 0, 1], Kx[..., 0, 2] = -P[..., 2], P[..., 1]
-            Kx[..., 1, 0], Kx[..., 1, 2] = P[..., 2], -P[..., 0]
-            Kx[..., 2, 0], Kx[..., 2, 1] = -P[..., 1], P[..., 0]
-            self._Kx = Kx
-            rows = np.broadcast_to((3 * np.arange(m))[:, None, None, None] + np.arange(3)[None, None, :, None],
-                                   (m, 8, 3, 3))
-            cols = np.broadcast_to(3 * self.cells[:, :, None, None] + np.arange(3)[None, None, None, :],
-                                   (m, 8, 3, 3))
-            self._G_index = (rows.ravel(), cols.ravel())
-            self._L3 = sp.kron(self.L, sp.eye(3), format="csr")
-            self._hess_key = float(activation)
+        C = np.einsum("mki,mkj->mij", P, P)
+        M0 = np.trace(C, axis1=1, axis2=2)[:, None, None] * np.eye(3) - C
+        lam0, W0 = np.linalg.eigh(M0)
+        self._M0is = np.einsum("mij,mj,mkj->mik", W0, 1.0 / np.sqrt(np.maximum(lam0, 1e-300)), W0)
+        Kx = np.zeros(P.shape + (3,))  # [p]x
+        Kx[..., 0, 1], Kx[..., 0, 2] = -P[..., 2], P[..., 1]
+        Kx[..., 1, 0], Kx[..., 1, 2] = P[..., 2], -P[..., 0]
+        Kx[..., 2, 0], Kx[..., 2, 1] = -P[..., 1], P[..., 0]
+        self._Kx = Kx
+        rows = np.broadcast_to((3 * np.arange(m))[:, None, None, None] + np.arange(3)[None, None, :, None],
+                               (m, 8, 3, 3))
+        cols = np.broadcast_to(3 * self.cells[:, :, None, None] + np.arange(3)[None, None, None, :],
+                               (m, 8, 3, 3))
+        self._G_index = (rows.ravel(), cols.ravel())
+        self._hess_key = float(activation)
+
+    def _hessian_blocks(self, Q, S, activation=1.0, floor=1.0):
+        """``root^T G_k`` of every cell, ``(m, 8, 3, 3)``: the Hessian is ``2 (L (x) I3 - J^T J)``.
+
+        ``floor`` is the lower clamp of the eigenvalues of ``M0^{-1/2} M M0^{-1/2}``:
+        1 makes every cell's Hessian positive semi-definite (:meth:`hessian`); below 1 a
+        cell may contribute negative curvature, which the sum over cells usually absorbs.
+        """
+        self._hessian_setup(activation)
         Y = np.einsum("mji,mjk->mik", Q, S)
         Y = 0.5 * (Y + Y.transpose(0, 2, 1))
         M = np.trace(Y, axis1=1, axis2=2)[:, None, None] * np.eye(3) - Y
         B = self._M0is @ M @ self._M0is
         lam, W = np.linalg.eigh(B)
-        lam = np.maximum(lam, 1.0)
+        lam = np.maximum(lam, floor)
         # (w N)^(1/2) with N = M0^{-1/2} W diag(1/lam) W^T M0^{-1/2}
         root = np.einsum("mij,mjk,mk->mik", self._M0is, W, np.sqrt(self.w[:, None] / lam))
         G = np.einsum("mkab,mcb->mkac", self._Kx, Q)  # G_k = [p_k]x Q^T, (m, 8, 3, 3)
-        RG = np.einsum("mba,mkbc->mkac", root, G)  # root^T G_k
+        return np.einsum("mba,mkbc->mkac", root, G)  # root^T G_k
+
+    # -- Newton with conjugate gradients, for large designs ---------------------------------
+    def _coarse_space(self):
+        """Bilinear interpolation ``Z`` (n, k) from a coarse grid, per layer of vertices.
+
+        The coarse grid spacing is about 1.5 film thicknesses (at least two cells), so that
+        the coarse space carries the bending at lengths above the thickness, which the
+        n x n system alone resolves badly. The pinned vertex's row is zero.
+        """
+        if getattr(self, "_Z", None) is not None:
+            return self._Z
+        mesh = self.design.mesh
+        X = mesh.points
+        dx, dy, dz = mesh.spacing
+        c = max(2, int(np.ceil(1.5 * self.design.h / min(dx, dy))))
+        i = np.rint((X[:, 0] - X[:, 0].min()) / dx).astype(int)
+        j = np.rint((X[:, 1] - X[:, 1].min()) / dy).astype(int)
+        k = np.rint((X[:, 2] - X[:, 2].min()) / dz).astype(int)
+        I0, ti = np.divmod(i, c)
+        J0, tj = np.divmod(j, c)
+        ti, tj = ti / c, tj / c
+        nJ, nK = j.max() // c + 2, k.max() + 1
+        rows = np.tile(np.arange(self.n), 4)
+        cols = np.concatenate([((I0 + a) * nJ + (J0 + b)) * nK + k for a in (0, 1) for b in (0, 1)])
+        vals = np.concatenate([wa * wb for wa in (1 - ti, ti) for wb in (1 - tj, tj)])
+        vals[rows == self.pin] = 0.0
+        Z = sp.csr_matrix((vals, (rows, cols)))
+        Z.eliminate_zeros()
+        used = np.unique(Z.indices)
+        self._Z = Z[:, used].tocsr()
+        Zf = self._Z[self.free]
+        self._Lc3 = sp.kron(Zf.T @ self.L_ff @ Zf, sp.eye(3), format="csc")
+        self._Z3 = sp.kron(self._Z, sp.eye(3), format="csr")
+        m = self.cells.shape[0]
+        self._scatter = sp.csr_matrix((np.ones(8 * m), (self.cells.ravel(), np.arange(8 * m))),
+                                      shape=(self.n, 8 * m))
+        return self._Z
+
+    def _newton_operator(self, RG, mu):
+        """Hessian product, preconditioner and its factorised coarse part for blocks ``RG``.
+
+        The preconditioner adds the exact inverse of the (scaled) n x n system for the
+        three coordinates and a Galerkin coarse correction ``Z (Z^T H Z)^{-1} Z^T``.
+        Returns ``(apply_H, apply_P)`` acting on ``(n, 3)`` arrays, or None when the
+        coarse matrix is not positive definite.
+        """
+        m = self.cells.shape[0]
+        Z = self._coarse_space()
+        RGt = np.ascontiguousarray(RG.transpose(0, 2, 1, 3).reshape(m, 3, 24))
         J = sp.csr_matrix((RG.ravel(), self._G_index), shape=(3 * m, 3 * self.n))
-        return (2.0 * (1.0 + mu)) * self._L3 - 2.0 * (J.T @ J)
+        JZ = (J @ self._Z3).tocsc()
+        Hc = (2.0 * (1.0 + max(mu, 1e-6))) * self._Lc3 - 2.0 * (JZ.T @ JZ)
+        try:
+            fc = _factorise(Hc)
+        except RuntimeError:  # SuperLU: exactly singular
+            return None
+        pin = self.pin
+        cells = self.cells
+        scale = 2.0 * (1.0 + mu)
+
+        def apply_H(v):
+            Jv = np.matmul(RGt, v[cells].reshape(m, 24, 1))
+            JtJv = np.matmul(RGt.transpose(0, 2, 1), Jv).reshape(8 * m, 3)
+            out = scale * (self.L @ v) - 2.0 * (self._scatter @ JtJv)
+            out[pin] = 0.0
+            return out
+
+        def apply_P(r):
+            z = np.zeros_like(r)
+            z[self.free] = self._lu.solve(np.asfortranarray(r[self.free])) / scale
+            yc = fc.solve((Z.T @ r).ravel())
+            return z + Z @ yc.reshape(-1, 3)
+
+        return apply_H, apply_P
+
+    @staticmethod
+    def _pcg(apply_H, apply_P, rhs, rtol, max_iter):
+        """Preconditioned CG from 0; stops at negative curvature. Returns ``(x, iterations)``."""
+        x = np.zeros_like(rhs)
+        r = rhs.copy()
+        z = apply_P(r)
+        rz = float(np.vdot(r, z))
+        if not rz > 0:
+            return x, 0
+        stop = rtol * np.sqrt(rz)
+        p = z
+        for k in range(1, max_iter + 1):
+            Hp = apply_H(p)
+            pHp = float(np.vdot(p, Hp))
+            if not pHp > 0:
+                return x, k
+            a = rz / pHp
+            x += a * p
+            r -= a * Hp
+            z = apply_P(r)
+            rz_new = float(np.vdot(r, z))
+            if not rz_new > 0 or np.sqrt(rz_new) <= stop:
+                return x, k
+            p = z + (rz_new / rz) * p
+            rz = rz_new
+        return x, max_iter
+
+    def _solve_newton_cg(self, V0, activation, tol, max_iter, floor=0.5, cg_rtol=1e-2, cg_max=200):
+        """Damped Newton whose steps are solved by preconditioned CG, with no 3n x 3n factorisation.
+
+        The Hessian is :meth:`hessian`'s with the per-cell clamp lowered to ``floor``
+        (nearer the true Hessian, hence fewer Newton steps; CG stops at negative curvature
+        and the energy test rejects a bad step). Each CG iteration costs one solve with
+        the factorised n x n system for three right-hand sides, one Hessian product and
+        one solve with the coarse matrix, which is factorised once per Newton step.
+        """
+        V = np.array(V0, float)
+        Vp = V[self.pin].copy()
+        scale = self.design.h
+        Q, E = self.orient(V, activation)
+        S = self._last_S
+        energies = [E]
+        mu = 1e-3
+        it = 0
+        self.cg_iterations = 0
+        while True:
+            G = self.assemble(Q, Vp, activation)  # the plain step from V
+            it += 1
+            res = float(np.abs(G - V).max() / scale)
+            if res <= tol or it >= max_iter:
+                break
+            t0 = time.perf_counter()
+            grad = 2.0 * (self.L @ V - self._b)  # set by assemble
+            grad[self.pin] = 0.0
+            RG = self._hessian_blocks(Q, S, activation, floor=floor)
+            self.timings["newton"] = self.timings.get("newton", 0.0) + time.perf_counter() - t0
+            for _ in range(20):
+                t0 = time.perf_counter()
+                ops = self._newton_operator(RG, mu)
+                step, k = (None, 0) if ops is None else self._pcg(*ops, -grad, cg_rtol, cg_max)
+                self.cg_iterations += k
+                self.timings["newton"] += time.perf_counter() - t0
+                if step is not None and np.any(step):
+                    Vt = V + step
+                    Qt, Et = self.orient(Vt, activation)
+                    if Et < E:
+                        V, Q, E, S = Vt, Qt, Et, self._last_S
+                        mu = max(mu / 4.0, 1e-8)
+                        break
+                mu *= 8.0
+            else:  # no descent even with heavy damping: take the plain step
+                V = G
+                Q, E = self.orient(V, activation)
+                S = self._last_S
+            energies.append(E)
+        return G, res <= tol, it, res, energies + [self.orient(G, activation)[1]]
 
     # -- starting shapes -----------------------------------------------------------------
     def linearised_start(self, V, activation=1.0):
@@ -437,6 +628,8 @@ class Solver:
         """
         if method == "newton":
             return self._solve_newton(V0, activation, tol, max_iter)
+        if method == "newton-cg":
+            return self._solve_newton_cg(V0, activation, tol, max_iter)
         V = np.array(V0, float)
         Vp = V[self.pin].copy()
         scale = self.design.h
@@ -482,8 +675,61 @@ class Solver:
         return V, res <= tol, it, res, energies
 
 
-def _factorise(A):
-    """Sparse LU of a symmetric positive definite matrix: symmetric ordering, no pivoting."""
+#: Sparse factorisations of the symmetric positive definite systems, fastest first
+#: (measured by ``gdfe bench``): CHOLMOD's supernodal Cholesky through scikit-sparse
+#: (needs SuiteSparse from the system packages), then SciPy's SuperLU, which needs
+#: nothing beyond SciPy. The environment variable ``GDFE_FACTOR`` (``cholmod`` or
+#: ``superlu``) forces one.
+FACTOR_BACKENDS = ("cholmod", "superlu")
+
+
+def factor_backend():
+    """Name of the sparse factorisation :func:`_factorise` uses here."""
+    import os
+
+    forced = os.environ.get("GDFE_FACTOR", "").strip().lower()
+    if forced:
+        if forced not in FACTOR_BACKENDS:
+            raise ValueError(f"GDFE_FACTOR: expected one of {FACTOR_BACKENDS}, got {forced!r}")
+        return forced
+    try:
+        import sksparse.cholmod  # noqa: F401
+    except ImportError:
+        return "superlu"
+    return "cholmod"
+
+
+class _Cholmod:
+    """CHOLMOD's Cholesky factor with the ``solve`` of SciPy's SuperLU."""
+
+    def __init__(self, A):
+        import warnings
+
+        from sksparse.cholmod import cholesky
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # CHOLMOD's note on converting the index type
+            self._f = cholesky(sp.csc_matrix(A, dtype=float))
+
+    def solve(self, b):
+        return self._f(np.asarray(b, float))
+
+
+def _factorise(A, backend=None):
+    """Factorise a sparse symmetric positive definite matrix; the result has ``solve(b)``.
+
+    ``backend`` (default :func:`factor_backend`): ``"cholmod"`` (supernodal Cholesky,
+    falls back to SuperLU if CHOLMOD finds the matrix not positive definite) or
+    ``"superlu"`` (sparse LU with a symmetric ordering and no pivoting).
+    """
+    backend = backend or factor_backend()
+    if backend == "cholmod":
+        from sksparse.cholmod import CholmodError
+
+        try:
+            return _Cholmod(A)
+        except CholmodError as exc:
+            log.info("CHOLMOD failed (%s); using SuperLU", exc)
     return spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                      options={"SymmetricMode": True})
 
@@ -500,6 +746,17 @@ def _expmap(omega):
     return np.eye(3) + s * Kx + (1 - c) * (Kx @ Kx)
 
 
+#: Methods of :func:`simulate`.
+METHODS = ("newton", "newton-cg", "auto", "anderson", "plain")
+#: Largest design (cells) for which ``method="auto"`` factorises the full Hessian.
+AUTO_NEWTON_CELLS = 2000
+
+
+def auto_method(design):
+    """The method ``"auto"`` picks for ``design``: ``"newton"`` or ``"newton-cg"``."""
+    return "newton" if design.n_cells <= AUTO_NEWTON_CELLS else "newton-cg"
+
+
 def simulate(design, *, method="newton", init="linear", steps=1, tol=1e-7, max_iter=None,
              history=6, seed=0):
     """Simulate the heat-activated shape change of a design.
@@ -508,11 +765,15 @@ def simulate(design, *, method="newton", init="linear", steps=1, tol=1e-7, max_i
     ----------
     design : Design
         The film, its material map and contraction ratios.
-    method : {"newton", "anderson", "plain"}
+    method : {"newton", "newton-cg", "auto", "anderson", "plain"}
         ``"plain"`` is the paper's alternation; ``"anderson"`` accelerates it with an
         energy safeguard; ``"newton"`` (default) takes damped Newton steps on the same
-        energy (:meth:`Solver.hessian`). All stop at a fixed point of the same map, and
-        the residual is always that of the paper's plain step.
+        energy (:meth:`Solver.hessian`), factorising the 3n x 3n Hessian each step;
+        ``"newton-cg"`` solves the Newton steps by conjugate gradients preconditioned with
+        the factorised n x n system and a coarse grid, which is what large sheets need;
+        ``"auto"`` picks ``"newton"`` up to :data:`AUTO_NEWTON_CELLS` cells, else
+        ``"newton-cg"``. All stop at a fixed point of the same map, and the residual is
+        always that of the paper's plain step.
     init : {"linear", "flat"}
         Starting shape of the first frame: the small-rotation solution (default), or the
         flat print with a seeded perturbation of 1e-4 h out of plane (the flat print itself
@@ -524,7 +785,7 @@ def simulate(design, *, method="newton", init="linear", steps=1, tol=1e-7, max_i
         Convergence tolerance on the fixed-point residual (largest vertex move of one
         plain iteration, in units of the film thickness h).
     max_iter : int, optional
-        Iteration limit per frame; default 200 for ``"newton"``, 5000 otherwise.
+        Iteration limit per frame; default 200 for the Newton methods, 5000 otherwise.
     history : int
         Anderson history length.
     seed : int
@@ -536,13 +797,16 @@ def simulate(design, *, method="newton", init="linear", steps=1, tol=1e-7, max_i
         Check ``result.converged`` (or call ``result.check()``): a solve that hit
         ``max_iter`` is returned with ``converged=False`` and logged as a warning.
     """
-    if method not in ("newton", "anderson", "plain"):
-        raise ValueError(f"method: expected 'newton', 'anderson' or 'plain', got {method!r}")
+    if method not in METHODS:
+        names = ", ".join(map(repr, METHODS[:-1])) + f" or {METHODS[-1]!r}"
+        raise ValueError(f"method: expected {names}, got {method!r}")
+    if method == "auto":
+        method = auto_method(design)
     if init not in ("linear", "flat"):
         raise ValueError(f"init: expected 'linear' or 'flat', got {init!r}")
     steps = check_int("steps", steps)
     if max_iter is None:
-        max_iter = 200 if method == "newton" else 5000
+        max_iter = 200 if method.startswith("newton") else 5000
     max_iter = check_int("max_iter", max_iter)
     history = check_int("history", history)
     tol = check_positive("tol", tol)
