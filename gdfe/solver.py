@@ -580,7 +580,15 @@ class Solver:
         of the energy), then applies the finite rotations ``exp([omega_i]x)`` in one
         assembly step. Cells are compared in the frame of ``V``, so ``V`` must be the
         flat print or a shape whose cells are unrotated.
+
+        Up to :data:`AUTO_NEWTON_CELLS` cells the joint system is factorised with the
+        rotation of the pinned vertex's cell held; larger designs eliminate the rotations
+        cell by cell and solve for the vertices by preconditioned CG (see
+        :meth:`_linearised_start_cg`), which fixes the rigid rotation about the pinned
+        vertex only approximately.
         """
+        if self.cells.shape[0] > AUTO_NEWTON_CELLS:
+            return self._linearised_start_cg(V, activation)
         P, _ = self._rest(activation)
         m = self.cells.shape[0]
         n = self.n
@@ -619,6 +627,35 @@ class Solver:
         omega = x[3 * n:].reshape(m, 3)
         Q = _expmap(omega)
         return self.assemble(Q, V[self.pin], activation)
+
+    def _linearised_start_cg(self, V, activation=1.0, rtol=1e-6, max_iter=500):
+        """:meth:`linearised_start` with the rotations eliminated, solved by PCG.
+
+        Minimising over ``omega_i`` leaves the quadratic ``sum_i w_i |D V_i - P_i|^2 -
+        |J_i V|^2`` in the vertices, whose Hessian is :meth:`hessian`'s at ``Q = I`` with
+        ``M = M0`` (so nothing is clamped); then ``omega_i = M0^{-1} sum_k p_k x x_k``.
+        """
+        t0 = time.perf_counter()
+        P, _ = self._rest(activation)
+        V = np.asarray(V, float)
+        m = self.cells.shape[0]
+        eye = np.broadcast_to(np.eye(3), (m, 3, 3))
+        C = np.einsum("mki,mkj->mij", P, P)
+        RG = self._hessian_blocks(eye, C, activation, floor=1.0)
+        apply_H, apply_P = self._newton_operator(RG, 0.0)
+        b = self.B @ P.reshape(-1, 3)
+        grad = apply_H(V) - 2.0 * b  # 2 (L V - b) - 2 J^T J V; zero at the pinned vertex
+        grad[self.pin] = 0.0
+        step, k = self._pcg(apply_H, apply_P, -grad, rtol, max_iter)
+        self.cg_iterations = getattr(self, "cg_iterations", 0) + k
+        X = (V + step)[self.cells]
+        X -= X.mean(axis=1, keepdims=True)
+        self._hessian_setup(activation)
+        rhs = np.cross(P, X).sum(axis=1)  # sum_k p_k x x_k
+        M0is = self._M0is
+        omega = np.einsum("mij,mjk,mk->mi", M0is, M0is, rhs)
+        self.timings["newton"] = self.timings.get("newton", 0.0) + time.perf_counter() - t0
+        return self.assemble(_expmap(omega), V[self.pin], activation)
 
     # -- the solve ----------------------------------------------------------------------
     def solve(self, V0, activation=1.0, method="newton", tol=1e-7, max_iter=200, history=6):
