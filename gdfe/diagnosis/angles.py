@@ -11,8 +11,9 @@
    and measures each on tests the fit did not see: leave-one-out, and leave-one-group-out
    when the tests carry a group column;
 4. ranks them by held-out error, reports how much of the baseline's held-out error each
-   removes (``shrink``) and its AICc, and names the **best**: the simplest model within one
-   standard error of the smallest held-out error (:func:`gdfe.diagnosis.fit.select`).
+   removes (``shrink``) and its AICc, and names the **best**, climbing from the baseline one
+   effect at a time while the held-out error drops significantly
+   (:func:`gdfe.diagnosis.fit.select`).
 
 Angles in radians, lengths in mm.
 """
@@ -26,7 +27,7 @@ import numpy as np
 
 from gdfe.calibration import FoldingTests, load_folding_tests
 from gdfe.diagnosis.effects import EFFECTS, Model, catalogue
-from gdfe.diagnosis.fit import ModelFit, evaluate, select
+from gdfe.diagnosis.fit import STEP_SE, ModelFit, evaluate, select
 from gdfe.diagnosis.where import residual_analysis
 
 __all__ = ["Diagnosis", "diagnose", "numeric_columns"]
@@ -53,7 +54,7 @@ class Diagnosis:
     best : ModelFit
         The chosen model (may be the baseline: no effect earns its parameters).
     candidates : list of str
-        Models within one standard error of the smallest held-out error.
+        Models within one standard error of the chosen model's held-out error, or below it.
     where, where_best : list of dict
         Residual analysis of the baseline and of the best model.
     regime, regime_best : str
@@ -134,8 +135,10 @@ class Diagnosis:
             "best": self.best.name,
             "best_detail": {**entry(self.best), "where": self.where_best, "regime": self.regime_best},
             "selection": ("ranked by " + ("leave-one-group-out" if logo else "leave-one-out")
-                          + " RMSE; best: the model with the fewest parameters among those within one "
-                            "standard error of the smallest held-out mean squared error"),
+                          + " RMSE; best: climbing from the baseline, the best single effect is named if "
+                          f"its held-out mean squared error is lower by more than {STEP_SE[0]:g} standard "
+                          "error(s) of the paired per-test difference, the best pair if lower than that "
+                          f"by more than {STEP_SE[1]:g}"),
             "candidates": self.candidates,
             "catalogue": {e.name: {"stage": e.stage, "params": list(e.params), "units": list(e.units),
                                    "meaning": e.meaning} for e in EFFECTS.values()},

@@ -286,39 +286,59 @@ def evaluate(model, L, d, h, alpha, groups=None, starts=None):
     )
 
 
-def select(fits, alpha, kind="loo"):
-    """The model to report: the simplest within one standard error of the best held-out error.
+#: Standard errors by which the best model with one more effect must beat the current choice:
+#: one (the one-standard-error rule) to name an effect at all, two (about the 5 % level of a
+#: one-sided paired test) to name a pair, of which ten are tried on as few as 18 tests.
+STEP_SE = (1.0, 2.0)
 
-    The held-out squared errors of each model are compared with those of the model with the
-    smallest mean (paired, per test); every model whose mean exceeds the smallest by at most
-    one standard error of the paired difference is a candidate, and among the candidates the
-    one with the fewest parameters wins (then the smallest held-out error). This is the
-    one-standard-error rule: a more complex model must earn its parameters on held-out data.
+
+def _paired(sq_a, sq_b):
+    """Mean and standard error of the per-test difference of two held-out squared errors."""
+    diff = sq_a - sq_b
+    se = diff.std(ddof=1) / math.sqrt(diff.size) if diff.size > 1 else 0.0
+    return float(diff.mean()), float(se)
+
+
+def select(fits, alpha, kind="loo", step_se=STEP_SE):
+    """The model to report, climbing from the baseline one effect at a time.
+
+    Level 0 is the baseline, level 1 the single effects, level 2 the pairs. At each level the
+    model with the smallest held-out mean squared error replaces the current choice only if
+    it beats it by more than ``step_se[level - 1]`` standard errors of the paired per-test
+    difference: a more complex model must earn its parameters on held-out data.
 
     Parameters
     ----------
     fits : list of ModelFit
+        Must include the baseline (no effect).
     alpha : (n,) float array [rad]
         The measured angles.
     kind : {"loo", "logo"}
+    step_se : (2,) float
 
     Returns
     -------
     best : ModelFit
     candidates : list of str
-        Names of the models within one standard error of the smallest held-out error.
+        Models whose held-out error is within one standard error of the chosen one's, or
+        below it (the alternatives the data cannot rule out), best first.
     """
     alpha = np.asarray(alpha, float)
     sq = {f.name: (alpha - f.held_out(kind)) ** 2 for f in fits}
     ok = [f for f in fits if np.all(np.isfinite(sq[f.name]))]
-    if not ok:
-        raise RuntimeError("select: no model has finite held-out errors")
-    top = min(ok, key=lambda f: sq[f.name].mean())
-    cands = []
+    levels = {}
     for f in ok:
-        diff = sq[f.name] - sq[top.name]
-        se = diff.std(ddof=1) / math.sqrt(diff.size) if diff.size > 1 else 0.0
-        if diff.mean() <= se:
-            cands.append(f)
-    best = min(cands, key=lambda f: (f.model.n_params, sq[f.name].mean()))
+        levels.setdefault(len(f.model.effects), []).append(f)
+    if 0 not in levels:
+        raise ValueError("fits: the baseline (no effect) must be among them with finite held-out errors")
+    best = levels[0][0]
+    for level in (1, 2):
+        if level not in levels:
+            continue
+        top = min(levels[level], key=lambda f: sq[f.name].mean())
+        mean, se = _paired(sq[top.name], sq[best.name])
+        if mean < -step_se[level - 1] * se:
+            best = top
+    tiny = 1e-6 * float(sq[best.name].mean())  # models that coincide (an effect at zero) tie
+    cands = [f for f in ok if (lambda m, s: m <= s + tiny)(*_paired(sq[f.name], sq[best.name]))]
     return best, [f.name for f in sorted(cands, key=lambda f: sq[f.name].mean())]

@@ -42,6 +42,9 @@ log = logging.getLogger(__name__)
 CELLS = {"coarse": (16, 4), "default": (24, 6), "fine": (32, 8)}
 #: Columns of cells in each rigid panel (the panels' length does not change the fold).
 PANEL_CELLS = 4
+#: Strip width [mm]: the core's narrow strip, or two cells where that is narrower (the fold
+#: of so narrow a strip does not depend on its width: < 0.001 rad).
+NARROW = 0.5
 
 
 def _cells(resolution):
@@ -79,7 +82,9 @@ def simulate_fold(L, R, h, *, alpha_max=None, resolution="coarse"):
 
     cells, steps = _cells(resolution)
     t0 = time.perf_counter()
-    design = gdfe.hinge(L, R=R, h=h, cell_size=L / cells, panel_length=PANEL_CELLS * L / cells)
+    cell = L / cells
+    design = gdfe.hinge(L, R=R, h=h, cell_size=cell, panel_length=PANEL_CELLS * cell,
+                        width=min(NARROW, 2 * cell))
     if alpha_max is None:
         res = gdfe.simulate(design)
         return {"alpha": gdfe.fold_angle(res), "converged": bool(res.converged),

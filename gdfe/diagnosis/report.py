@@ -141,8 +141,8 @@ def _summary_md(diag, files):
     params = ", ".join(f"{k} = {v:.4g}" for k, v in best.param_dict().items())
     lines += ["", f"Best: **{best.name}** ({params}): held-out RMSE {diag.held_out_rmse(b):.3f} -> "
                   f"{diag.held_out_rmse(best):.3f} rad, {100 * diag.shrink(best):.0f} % of the baseline's "
-                  f"held-out error removed. Within one standard error of the smallest held-out error: "
-                  f"{', '.join(diag.candidates)}.", ""]
+                  f"held-out error removed. Not ruled out by the held-out errors (within one standard "
+                  f"error of the best or below it): {', '.join(diag.candidates)}.", ""]
     from gdfe.diagnosis.effects import EFFECTS
 
     for e in best.model.effects:
