@@ -1,0 +1,103 @@
+"""``gdfe bench`` runs and reports every goal; the large-design solver paths agree with Newton."""
+
+import json
+
+import numpy as np
+import pytest
+
+import gdfe
+from gdfe.bench import format_table, mask_sheet, write_mask_pngs
+from gdfe.cli import main
+from gdfe.solver import AUTO_NEWTON_CELLS, Solver, _factorise, auto_method, factor_backend
+
+
+def test_quick_bench_reports_every_section_and_verdict(capsys, tmp_path):
+    assert main(["bench", "--quick", "--json", "--out", str(tmp_path)]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["machine"]["cores"] >= 1
+    assert res["machine"]["factor_backend"] in ("cholmod", "superlu")
+    methods = {r["method"] for r in res["hinges"]}
+    assert methods == {"newton", "anderson", "plain"}
+    assert all(r["converged"] for r in res["hinges"] if r["method"] == "newton")
+    assert len(res["sheets"]) == 3
+    for row in res["sheets"]:
+        assert row["converged"]
+        assert row["peak_rss_mib"] >= row["rss_before_mib"] > 0
+        assert set(row["split_s"]) >= {"orientation", "assembly"}
+        lb = row["lower_bound"]
+        assert lb["bound_s"] == pytest.approx(lb["solve_3rhs_s"] + lb["svd_s"])
+        assert lb["local_global_ratio"] > 0
+        assert "superlu" in row["factorisation"]["n"]
+    assert "skipped" in res["fem_comparison"]
+    v = res["verdicts"]
+    assert set(v) == {"hinges", "fem", "sheet", "lower_bound", "growth"}
+    assert isinstance(v["hinges"]["met"], bool)
+    assert isinstance(v["lower_bound"]["met"], bool)
+    assert isinstance(v["growth"]["value"], float)
+    assert v["fem"]["met"] is None and v["sheet"]["met"] is None  # not measured in --quick
+    assert (tmp_path / "bench.json").is_file() and (tmp_path / "bench_scaling.png").is_file()
+    assert len(list((tmp_path / "masks").glob("*.png"))) == 6
+    text = format_table(res)
+    assert f"{res['machine']['cores']} cores" in text and "Goals" in text and "lower bound" in text
+
+
+def test_bench_rejects_bad_sizes(capsys):
+    assert main(["bench", "--quick", "--sizes", "1"]) == 1
+    assert "sizes" in capsys.readouterr().err
+
+
+def test_mask_sheet_png_round_trip(tmp_path):
+    top, bottom = mask_sheet(900)
+    assert top.shape == (30, 30)
+    assert (~top).any() and (~bottom).any() and (top & bottom).any()  # both hinge kinds and panels
+    ptop, pbot = write_mask_pngs(tmp_path, top, bottom)
+    a = gdfe.from_masks(ptop, pbot, 0.1, 0.7, nz=1)
+    b = gdfe.from_masks(top, bottom, 0.1, 0.7, nz=1)
+    np.testing.assert_array_equal(a.material, b.material)
+
+
+def test_auto_method_switches_to_newton_cg_for_large_designs():
+    top, bottom = mask_sheet(AUTO_NEWTON_CELLS + 500)
+    assert auto_method(gdfe.from_masks(top, bottom, 0.1, 0.7, nz=1)) == "newton-cg"
+    assert auto_method(gdfe.hinge(1.0, d=0.33)) == "newton"
+
+
+@pytest.mark.parametrize("L", [1.0, 2.6])
+def test_newton_cg_reaches_newtons_answer(L):
+    des = gdfe.hinge(L, d=0.33)
+    a = gdfe.simulate(des, method="newton", tol=1e-10).check()
+    b = gdfe.simulate(des, method="newton-cg", tol=1e-10).check()
+    assert b.method == "newton-cg"
+    # the shape is unique up to a rotation about the pinned vertex
+    assert gdfe.shape_distance(a.points, b.points)["max"] < 1e-8
+    assert gdfe.fold_angle(b) == pytest.approx(gdfe.fold_angle(a), abs=1e-8)
+    assert b.energy == pytest.approx(a.energy, rel=1e-9)
+
+
+def test_iterative_linearised_start_leads_to_the_same_fixed_point():
+    des = gdfe.from_masks(*mask_sheet(400), 0.1, 0.7, nz=1)
+    s = Solver(des)
+    V0 = s._linearised_start_cg(des.mesh.points.copy())
+    V, ok, *_ = s.solve(V0, method="newton-cg", tol=1e-10)
+    ref = gdfe.simulate(des, method="newton", tol=1e-10).check()
+    assert ok
+    assert gdfe.shape_distance(V, ref.points)["max"] < 1e-8
+
+
+def test_factorisation_backends_agree(monkeypatch):
+    des = gdfe.hinge(1.0, d=0.33)
+    A = Solver(des).L_ff
+    b = np.random.default_rng(1).standard_normal((A.shape[0], 3))
+    x = _factorise(A, backend="superlu").solve(b)
+    np.testing.assert_allclose(A @ x, b, atol=1e-9)
+    pytest.importorskip("sksparse.cholmod")
+    y = _factorise(A, backend="cholmod").solve(b)
+    np.testing.assert_allclose(y, x, rtol=1e-9, atol=1e-12)
+    monkeypatch.setenv("GDFE_FACTOR", "superlu")
+    assert factor_backend() == "superlu"
+
+
+def test_unknown_factor_backend_is_rejected(monkeypatch):
+    monkeypatch.setenv("GDFE_FACTOR", "mumps")
+    with pytest.raises(ValueError, match="GDFE_FACTOR"):
+        factor_backend()
