@@ -12,6 +12,7 @@ from gdfe.diagnosis.angles import Diagnosis, diagnose
 from gdfe.diagnosis.effects import EFFECTS, Effect, Model, catalogue, model, timoshenko_curvature
 from gdfe.diagnosis.fit import ModelFit, evaluate, select
 from gdfe.diagnosis.forward import gdfe_check, simulate_fold, simulate_model
+from gdfe.diagnosis.shape import ShapeDiagnosis, Surface, align_icp, design_regions, diagnose_shape, load_measured
 from gdfe.diagnosis.where import residual_analysis
 
 __all__ = [
@@ -19,5 +20,6 @@ __all__ = [
     "EFFECTS", "Effect", "Model", "catalogue", "model", "timoshenko_curvature",
     "ModelFit", "evaluate", "select",
     "gdfe_check", "simulate_fold", "simulate_model",
+    "ShapeDiagnosis", "Surface", "align_icp", "design_regions", "diagnose_shape", "load_measured",
     "residual_analysis",
 ]

@@ -163,21 +163,24 @@ def write_shape_report(result, out):
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     names = [r["name"] for r in result.regions]
-    before = [r["rms"] for r in result.regions]
-    after = [r.get("rms_after", np.nan) for r in result.regions]
+    def values(key):
+        return [np.nan if r.get(key) is None else r[key] for r in result.regions]
+
+    before, after = values("rms"), values("rms_after")
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     x = np.arange(len(names))
-    axes[0].bar(x - 0.2, before, 0.4, label="before", color="C3")
-    axes[0].bar(x + 0.2, after, 0.4, label="after correction", color="C0")
+    axes[0].bar(x - 0.27, before, 0.27, label="before (part aligned)", color="C3")
+    axes[0].bar(x, values("local_rms"), 0.27, label="before (region aligned alone)", color="C1")
+    axes[0].bar(x + 0.27, after, 0.27, label="after correction", color="C0")
     axes[0].set_xticks(x, names, rotation=45, ha="right", fontsize=8)
     axes[0].set(ylabel="RMS deviation [mm]", title="deviation per region")
     axes[0].legend(fontsize=8)
-    single = [r.get("single_fit_rms", np.nan) for r in result.regions]
+    single = values("single_fit_rms")
     axes[1].bar(x, single, color=["C0" if n in result.named else "0.7" for n in names])
     axes[1].axhline(result.rms_before, color="C3", ls="--", lw=0.8, label="no correction")
     axes[1].set_xticks(x, names, rotation=45, ha="right", fontsize=8)
-    axes[1].set(ylabel="overall RMS after correcting this region alone [mm]",
-                title="which region explains the gap")
+    axes[1].set(ylabel="overall RMS, only this region corrected [mm]",
+                title="which region explains the gap (named: " + (", ".join(result.named) or "none") + ")")
     axes[1].legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(out / "deviation.png", dpi=110)

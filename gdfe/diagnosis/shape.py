@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["ShapeDiagnosis", "diagnose_shape", "load_measured", "design_regions", "align_icp"]
+__all__ = ["ShapeDiagnosis", "Surface", "diagnose_shape", "load_measured", "design_regions", "align_icp"]
 
 log = logging.getLogger(__name__)
 
@@ -152,8 +152,9 @@ def design_regions(design):
 class Surface:
     """The boundary of a simulated shape, for exact closest-point queries.
 
-    Each boundary quadrilateral of the hex mesh is split into two triangles; a query finds
-    the faces of the ``k`` nearest of a few interior samples per face and the exact closest
+    Each boundary quadrilateral of the hex mesh is split into four triangles around its
+    centre (within about 1e-3 of the cell size of the bilinear face); a query finds the
+    faces of the ``k`` nearest of a few interior samples per face and the exact closest
     point on their triangles (inside, or on one of the three edges).
 
     Parameters
@@ -186,8 +187,9 @@ class Surface:
         self.tree = cKDTree(samples)
         self.samples = samples
 
-        # the two triangles of every face, (2f, 3) each, with what a query needs
-        tri = np.concatenate([self.P[:, [0, 1, 2]], self.P[:, [0, 2, 3]]])
+        # four triangles per face, fanned around its centre, (4f, 3) each, with what a query needs
+        c = self.P.mean(axis=1, keepdims=True)
+        tri = np.concatenate([np.concatenate([self.P[:, [i, (i + 1) % 4]], c], axis=1) for i in range(4)])
         self._a = tri[:, 0]
         self._ab = tri[:, 1] - tri[:, 0]
         self._ac = tri[:, 2] - tri[:, 0]
@@ -206,7 +208,7 @@ class Surface:
         k = min(k, len(self.samples))
         _, nn = self.tree.query(X, k=k)
         F = self.sample_face[nn.reshape(len(X), -1)]
-        T = np.concatenate([F, F + self._nf], axis=1)  # (q, 2k) candidate triangles
+        T = np.concatenate([F + i * self._nf for i in range(4)], axis=1)  # (q, 4k) candidates
         p = X[:, None, :]
         a, ab, ac, bc = self._a[T], self._ab[T], self._ac[T], self._bc[T]
         d00, d01, d11, dbc = (self._d[T, i] for i in range(4))
@@ -222,11 +224,11 @@ class Surface:
         tac = np.clip(d21 / np.where(d11 > 0, d11, 1.0), 0, 1)
         tbc = np.clip(np.einsum("qkc,qkc->qk", ap - ab, bc) / np.where(dbc > 0, dbc, 1.0), 0, 1)
         cands = np.stack([a + v[..., None] * ab + w[..., None] * ac, a + tab[..., None] * ab,
-                          a + tac[..., None] * ac, a + ab + tbc[..., None] * bc])  # (4, q, 2k, 3)
+                          a + tac[..., None] * ac, a + ab + tbc[..., None] * bc])  # (4, q, 4k, 3)
         diff = cands - p
         dist2 = np.einsum("sqkc,sqkc->sqk", diff, diff)
         dist2[0] = np.where(inside, dist2[0], np.inf)
-        s_best = np.argmin(dist2, axis=0)  # (q, 2k)
+        s_best = np.argmin(dist2, axis=0)  # (q, 4k)
         d2 = np.take_along_axis(dist2, s_best[None], 0)[0]
         j = np.argmin(d2, axis=1)
         rows = np.arange(len(X))

@@ -1,0 +1,185 @@
+"""Shape diagnosis: regions, exact closest points, alignment, and localising a withheld hinge change."""
+
+import json
+
+import numpy as np
+import pytest
+
+import gdfe
+from gdfe.cli import main
+from gdfe.diagnosis import Surface, align_icp, design_regions, diagnose_shape, load_measured
+
+# three hinges at uneven spacing, so that no symmetry of the strip maps one onto another
+DESIGN = """
+[film]
+h = 0.29
+R = 0.8
+nz = 1
+
+[layout]
+pixel = 0.25
+rows = [
+  "RRRTTRRRRRTTRRTTRRRRRR",
+  "RRRTTRRRRRTTRRTTRRRRRR",
+]
+"""
+
+
+def _rotation(seed):
+    q = np.random.default_rng(seed).standard_normal(4)
+    a, b, c, d = q / np.linalg.norm(q)
+    return np.array([[a * a + b * b - c * c - d * d, 2 * (b * c - a * d), 2 * (b * d + a * c)],
+                     [2 * (b * c + a * d), a * a - b * b + c * c - d * d, 2 * (c * d - a * b)],
+                     [2 * (b * d - a * c), 2 * (c * d + a * b), a * a - b * b - c * c + d * d]])
+
+
+@pytest.fixture(scope="module")
+def design_file(tmp_path_factory):
+    p = tmp_path_factory.mktemp("shape") / "three_hinges.toml"
+    p.write_text(DESIGN)
+    return p
+
+
+@pytest.fixture(scope="module")
+def design(design_file):
+    return gdfe.load_design(design_file)[0]
+
+
+def _perturbed(design, region, R):
+    regions = design_regions(design)
+    Rc = design.R.copy()
+    Rc[regions[region]] = R
+    return gdfe.simulate(design.with_R(Rc)).points
+
+
+def test_regions_of_a_layout(design):
+    regions = design_regions(design)
+    assert sorted(regions) == ["hinge_1", "hinge_2", "hinge_3", "panel_1", "panel_2", "panel_3", "panel_4"]
+    assert [len(regions[f"panel_{k}"]) for k in (1, 2, 3, 4)] == [6, 10, 4, 12]
+    # numbered along x
+    xs = [design.mesh.cell_ij[regions[f"hinge_{k}"], 0].mean() for k in (1, 2, 3)]
+    assert xs == sorted(xs)
+
+
+def test_regions_of_a_hinge_are_its_own():
+    assert sorted(design_regions(gdfe.hinge(2.0, R=0.9))) == ["hinge", "panel_a", "panel_b"]
+
+
+def test_closest_points_are_exact(design):
+    pts = gdfe.simulate(design).points
+    surf = Surface(pts, design)
+    rng = np.random.default_rng(1)
+    X = pts[rng.integers(0, len(pts), 300)] + 0.02 * rng.standard_normal((300, 3))
+    C, d, _ = surf.closest(X)
+    np.testing.assert_allclose(np.linalg.norm(X - C, axis=1), d, atol=1e-12)
+    # against a dense sampling of the bilinear faces: equal up to the sampling (0.003 mm) and
+    # the four-triangle approximation of the faces
+    u = np.linspace(0, 1, 81)
+    uu, vv = (a.ravel() for a in np.meshgrid(u, u))
+    w = np.stack([(1 - uu) * (1 - vv), uu * (1 - vv), uu * vv, (1 - uu) * vv], 1)
+    from scipy.spatial import cKDTree
+
+    dense = np.einsum("sk,fkc->fsc", w, surf.P).reshape(-1, 3)
+    db, _ = cKDTree(dense).query(X)
+    assert np.all(d <= db + 2e-3)
+    assert np.all(db - d < 3e-3)
+
+
+def test_icp_recovers_a_rigid_motion(design):
+    pts = gdfe.simulate(design).points
+    surf = Surface(pts, design)
+    cloud = np.concatenate([pts, surf.P.mean(axis=1)])  # vertices and face centres lie on it
+    Q0 = _rotation(7)
+    moved = cloud @ Q0.T + np.array([3.0, -1.0, 2.0])
+    Q, t, rms = align_icp(moved, surf)
+    assert rms < 1e-6
+    np.testing.assert_allclose(moved @ Q.T + t, cloud, atol=1e-6)
+
+
+def test_unchanged_part_has_no_gap(design):
+    pts = gdfe.simulate(design).points
+    res = diagnose_shape(design, pts @ _rotation(3).T + 1.0)
+    assert res.method == "correspondence"
+    assert res.rms_before < 1e-9 and res.named == []
+
+
+def test_correspondence_scan_localises_the_changed_hinge(design, tmp_path):
+    """A VTU 'scan' of the design (same mesh) with hinge_2 contracting less, moved and noisy."""
+    from gdfe.io import write_vtu
+
+    rng = np.random.default_rng(4)
+    pts = _perturbed(design, "hinge_2", 0.88)
+    scan = pts @ _rotation(11).T + np.array([5.0, 1.0, -2.0]) + 0.003 * rng.standard_normal(pts.shape)
+    path = write_vtu(tmp_path / "scan.vtu", scan, design)
+    res = diagnose_shape(design, path)
+    assert res.method == "correspondence"
+    assert res.named == ["hinge_2"], res.text()
+    assert res.corrected_R["hinge_2"] == pytest.approx(0.88, abs=0.005)
+    assert res.rms_after < 0.3 * res.rms_before
+    assert res.converged
+    # invariance: another rigid motion of the scan gives the same deviation
+    again = diagnose_shape(design, scan @ _rotation(12).T - 3.0, correct=False)
+    assert again.rms_before == pytest.approx(res.rms_before, rel=1e-9)
+
+
+def test_point_cloud_scan_localises_the_changed_hinge(design_file, design, tmp_path):
+    """A CSV point cloud of the surface (no correspondences) with hinge_3 contracting more."""
+    rng = np.random.default_rng(6)
+    pts = _perturbed(design, "hinge_3", 0.72)
+    surf = Surface(pts, design, per_edge=6)
+    cloud = surf.samples[rng.choice(len(surf.samples), 700, replace=False)]
+    cloud = cloud @ _rotation(21).T + np.array([10.0, -2.0, 3.0]) + 0.004 * rng.standard_normal(cloud.shape)
+    path = tmp_path / "scan.csv"
+    np.savetxt(path, cloud, delimiter=",", header="x,y,z", comments="")
+    res = diagnose_shape(design_file, path)
+    assert res.method == "icp"
+    assert res.named == ["hinge_3"], res.text()
+    assert res.corrected_R["hinge_3"] == pytest.approx(0.72, abs=0.01)
+    assert res.rms_after < 0.3 * res.rms_before
+    by = res.regions_by_name()
+    assert by["hinge_3"]["single_fit_rms"] == min(by[f"hinge_{k}"]["single_fit_rms"] for k in (1, 2, 3))
+
+
+def test_cli_diagnose_shape(design_file, design, tmp_path, capsys):
+    pts = _perturbed(design, "hinge_1", 0.9)
+    path = tmp_path / "scan.csv"
+    np.savetxt(path, pts, delimiter=",")  # no header
+    out = tmp_path / "shape.json"
+    assert main(["diagnose-shape", str(design_file), str(path), "--json", str(out),
+                 "--report", str(tmp_path / "rep"), "--align", "correspondence"]) == 0
+    assert "the gap lies in hinge_1" in capsys.readouterr().out
+    d = json.loads(out.read_text())
+    assert d["named"] == ["hinge_1"] and len(d["element_deviation"]) == design.n_cells
+    assert {r["name"] for r in d["regions"]} >= {"hinge_1", "panel_1"}
+    assert (tmp_path / "rep" / "deviation.png").is_file()
+
+
+def test_load_measured_errors(tmp_path):
+    bad = tmp_path / "scan.xyz"
+    bad.write_text("1 2 3\n")
+    with pytest.raises(ValueError, match=r"expected a \.ply, \.vtu, \.obj or \.csv"):
+        load_measured(bad)
+    p = tmp_path / "scan.csv"
+    p.write_text("x,y,z\n0,0,0\n1,0,0\n0,one,0\n1,1,0\n")
+    with pytest.raises(ValueError, match="line 4: expected three numbers"):
+        load_measured(p)
+    p.write_text("a,b,c\n0,0,0\n")
+    with pytest.raises(ValueError, match="expected columns x, y, z"):
+        load_measured(p)
+    with pytest.raises(FileNotFoundError):
+        load_measured(tmp_path / "none.csv")
+
+
+def test_ply_is_read(design, tmp_path):
+    import meshio
+
+    pts = gdfe.simulate(design).points
+    meshio.write(tmp_path / "scan.ply", meshio.Mesh(pts, []))
+    got, cells = load_measured(tmp_path / "scan.ply")
+    np.testing.assert_allclose(got, pts)
+    assert cells is None
+
+
+def test_correspondence_needs_the_design_mesh(design):
+    with pytest.raises(ValueError, match="correspondence alignment needs"):
+        diagnose_shape(design, np.zeros((10, 3)) + np.arange(10)[:, None], align="correspondence")
