@@ -29,12 +29,10 @@ def surface(ax, points, design, elev=28, azim=-60, edges=True):
     from gdfe.io import surface_faces
 
     faces, owner = surface_faces(design)
-    # only top and bottom faces: enough for a film, and much lighter
-    n = np.cross(points[faces[:, 1]] - points[faces[:, 0]], points[faces[:, 3]] - points[faces[:, 0]])
+    # only the top and bottom faces (normal along z in the flat print): enough for a film, and lighter
     flat_n = np.cross(design.mesh.points[faces[:, 1]] - design.mesh.points[faces[:, 0]],
                       design.mesh.points[faces[:, 3]] - design.mesh.points[faces[:, 0]])
     keep = np.abs(flat_n[:, 2]) > 0.5 * np.linalg.norm(flat_n, axis=1)
-    del n
     faces, owner = faces[keep], owner[keep]
     cols = np.array([COLOURS[int(m)] for m in design.material[owner]])
     coll = Poly3DCollection(points[faces], facecolors=cols,

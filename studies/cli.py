@@ -69,9 +69,13 @@ def load(name):
 
 
 def _cmd_study(args):
+    from gdfe.cli import CLIError
     from studies._common import run_and_print
 
-    module = load(args.name)
+    try:
+        module = load(args.name)
+    except ModuleNotFoundError as exc:
+        raise CLIError(f"study {args.name} ({STUDIES[args.name]}) is not available: {exc}") from None
     out = args.out if args.out is not None else Path("out") / args.name
     if not hasattr(module, "NAME"):  # a study without the shared plumbing
         result = module.run(resolution=args.resolution, out=out)

@@ -175,8 +175,8 @@ def plot(result, out):
             for sp in ax.spines.values():
                 sp.set_color("C1" if (w, R) == PAPER_CASE else "0.8")
                 sp.set_linewidth(2 if (w, R) == PAPER_CASE else 1)
-    for k, (key, label) in enumerate((("deviation_mm", "deviation from the circle [mm]"),
-                                      ("circularity_mm", "circularity (annulus width) [mm]"))):
+    for k, (key, label) in enumerate((("deviation_mm", "deviation [mm]"),
+                                      ("circularity_mm", "circularity [mm]"))):
         ax = fig.add_subplot(gs[:, len(W) + 1 + k])
         M = np.array([[by[(w, R)][key] for w in W] for R in Rs])
         im = ax.imshow(M, cmap="magma_r", origin="lower", aspect="auto")
