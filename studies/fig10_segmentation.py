@@ -171,12 +171,12 @@ def plot(result, out):
         a.plot(P[:, 0], P[:, 1], "-", color="0.6", lw=5, solid_capstyle="round", label="sketch")
         a.plot(P[:, 0], P[:, 1], "k.", ms=2)
         c = fit.curve(ds=0.02)
-        a.plot(c[:, 0], c[:, 1], "C3-", lw=1.4, label=f"couples (dev {lv['fit_dev_mm']:.2f} mm)")
+        a.plot(c[:, 0], c[:, 1], "C3-", lw=1.4, label=f"couples, from the sketch's start (dev {lv['fit_dev_mm']:.2f} mm)")
         g = result["_sims"][lv["penalty"]]
-        a.plot(g[:, 0], g[:, 1], "C0--", lw=1.2, label=f"GDFE (dev {lv['gdfe']['max_dev_mm']:.2f} mm)")
+        a.plot(g[:, 0], g[:, 1], "C0--", lw=1.2, label=f"GDFE, best rigid fit (dev {lv['gdfe']['max_dev_mm']:.2f} mm)")
         a.set_aspect("equal")
         a.set(xlabel="mm", ylabel="mm")
-        a.legend(fontsize=8, loc="upper right")
+        a.legend(fontsize=7, loc="upper right")
     fig.suptitle("Fig. 10: S sketch, tangent graph τ(s) split by minimising Σε + mΔ (exact DP), "
                  "and the shapes from the couples", fontsize=10)
     fig.tight_layout()
