@@ -4,8 +4,8 @@ Every model is fitted by least squares from a grid of starts: Levenberg-Marquard
 on all starts at once, each parameter held inside its physical bounds by a smooth change of
 variable (logistic between two bounds, exponential above one; ``E_ratio`` on a log scale),
 then the best polished by ``scipy.optimize.least_squares`` with the bounds. Derivatives are
-by complex step (exact to rounding). Held-out
-errors refit the model without the held-out tests, starting from the full fit:
+by complex step (exact to rounding). Held-out errors refit the model without the held-out
+tests, starting from the full fit and keeping the full data's bounds:
 
 * leave-one-out (LOO): each test predicted by the model fitted to the other ``n - 1``;
 * leave-one-group-out (LOGO): each test predicted by the model fitted without its group.

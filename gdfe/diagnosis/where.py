@@ -111,7 +111,7 @@ def _regime(where, r, inputs):
         verb = "under-predicted" if b["mean"] > 0 else "over-predicted"
         parts.append(f"{verb} by {abs(b['mean']):.2f} rad on average for {words} "
                      f"({_range(w0['input'], b)})")
-    bias = f"Along the {noun} ({w0['text']}): " + "; ".join(parts) + "."
+    bias = w0["text"][0].upper() + w0["text"][1:] + f". By {noun}: " + "; ".join(parts) + "."
     best = None
     for w in where:
         for k, b in enumerate(w["bins"]):
