@@ -181,8 +181,10 @@ def test_table1_diagnosis(t1_diag):
     assert b["loo_rmse"] > b["rmse"] > 0.4
     effects = d["effects"]
     assert {"name", "params", "rmse", "loo_rmse", "shrink", "aic"} <= set(effects[0])
-    loos = [e["loo_rmse"] for e in effects]
+    assert effects[0]["name"] == d["best"]  # best first, then by held-out error
+    loos = [e["loo_rmse"] for e in effects[1:]]
     assert loos == sorted(loos)
+    assert sorted(e["rank"] for e in effects) == list(range(1, len(effects) + 1))
     for e in effects:
         assert e["shrink"] == pytest.approx(1 - e["loo_rmse"] / b["loo_rmse"])
     best = next(e for e in effects if e["name"] == d["best"])
@@ -220,7 +222,8 @@ def test_group_column_enables_leave_one_group_out(tmp_path, t1):
     d = diagnose(p, group="batch", pairs=False).as_dict()
     assert d["held_out"] == "leave-one-group-out"
     assert "logo_rmse" in d["baseline"] and "logo_rmse" in d["effects"][0]
-    logos = [e["logo_rmse"] for e in d["effects"]]
+    ranked = sorted(d["effects"], key=lambda e: e["rank"])
+    logos = [e["logo_rmse"] for e in ranked]
     assert logos == sorted(logos)
     assert "temperature_C" in [w["input"] for w in d["where"]]  # numeric extra column analysed
     with pytest.raises(ValueError, match="no column 'lot'"):

@@ -180,6 +180,14 @@ def test_ply_is_read(design, tmp_path):
     assert cells is None
 
 
+def test_auto_alignment_uses_correspondences_only_for_a_mesh_of_the_design(design, tmp_path):
+    pts = gdfe.simulate(design).points
+    path = tmp_path / "same_count.csv"
+    np.savetxt(path, pts, delimiter=",")  # a file of the right size, but no cells to prove it
+    assert diagnose_shape(design, path, correct=False).method == "icp"
+    assert diagnose_shape(design, path, correct=False, align="correspondence").method == "correspondence"
+
+
 def test_correspondence_needs_the_design_mesh(design):
     with pytest.raises(ValueError, match="correspondence alignment needs"):
         diagnose_shape(design, np.zeros((10, 3)) + np.arange(10)[:, None], align="correspondence")

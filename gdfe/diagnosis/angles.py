@@ -103,6 +103,11 @@ class Diagnosis:
                 e.update(logo_rmse=f.logo_rmse, shrink_logo=self.shrink(f, "logo"))
             return e
 
+        effects = []
+        for rank, f in enumerate(self.fits, start=1):
+            effects.append({**entry(f), "rank": rank})
+        # the chosen model first, the others by held-out error
+        effects.sort(key=lambda e: (e["name"] != self.best.name, e["rank"]))
         b = self.baseline
         base = {"model": BASELINE_MODEL,
                 "description": "GDFE hinge with the contraction ratio of Eq. 3 refitted to the data; "
@@ -131,10 +136,11 @@ class Diagnosis:
             "where": self.where,
             "regime": self.regime,
             "residuals": residuals,
-            "effects": [entry(f) for f in self.fits],
+            "effects": effects,
             "best": self.best.name,
             "best_detail": {**entry(self.best), "where": self.where_best, "regime": self.regime_best},
-            "selection": ("ranked by " + ("leave-one-group-out" if logo else "leave-one-out")
+            "selection": ("effects: the best first, then the others by rank, the order of their "
+                          + ("leave-one-group-out" if logo else "leave-one-out")
                           + " RMSE; best: climbing from the baseline, the best single effect is named if "
                           f"its held-out mean squared error is lower by more than {STEP_SE[0]:g} standard "
                           "error(s) of the paired per-test difference, the best pair if lower than that "

@@ -6,8 +6,7 @@
    correspondences (Kabsch) when the measurement is a mesh of the design (same vertices and
    cells, e.g. a VTU written by ``gdfe simulate``), else by iterative closest points from a
    correspondence-free start (centroids and principal axes, every proper axis flip tried),
-   measuring each point's distance to the plane of the nearest sample of the simulated
-   surface;
+   measuring each point's exact distance to the simulated surface (:class:`Surface`);
 2. reports the **deviation** per element and per region of the design (regions: the
    design's own, e.g. ``panel_a``/``hinge``/``panel_b``, else the connected areas of each
    material: ``hinge_1``, ``panel_1``, ...), both after the global alignment and after
@@ -407,18 +406,21 @@ class _Comparer:
     """Deviation of the measurement from simulated shapes of one design (the alignment kept
     from one call to the next)."""
 
-    def __init__(self, design, measured, cells, align, options):
+    def __init__(self, design, measured, cells, align, options, from_file):
         self.design = design
         self.measured = measured
         self.options = options
         self.n_sims = 0
         self.converged = True
         n = design.mesh.n_points
-        same = measured.shape[0] == n and (cells is None or (cells.shape == design.mesh.cells.shape
-                                                             and np.array_equal(cells, design.mesh.cells)))
-        if align == "correspondence" and not same:
+        # a mesh of the design: its vertices with the design's hexahedra (a file), or exactly
+        # the design's vertices (an array passed in)
+        same = measured.shape[0] == n and (
+            (cells is not None and cells.shape == design.mesh.cells.shape
+             and np.array_equal(cells, design.mesh.cells)) or (cells is None and not from_file))
+        if align == "correspondence" and measured.shape[0] != n:
             raise ValueError(f"measured: correspondence alignment needs the design's {n} vertices "
-                             f"(and its cells), got {measured.shape[0]} points")
+                             f"in its order, got {measured.shape[0]} points")
         self.method = "correspondence" if (align == "correspondence" or (align == "auto" and same)) else "icp"
         self.Q, self.t = np.eye(3), np.zeros(3)
         self._first = None
@@ -506,6 +508,9 @@ def diagnose_shape(design, measured, *, align="auto", correct=True, options=None
     measured : (k, 3) float array or str or Path
         The measured shape: points [mm], or a ``.ply``, ``.vtu``, ``.obj`` or ``.csv`` file.
     align : {"auto", "correspondence", "icp"}
+        ``"auto"``: correspondences when the measurement is a mesh of the design (a file with
+        the design's vertices and hexahedra, e.g. a VTU of ``gdfe simulate``, or an array of
+        exactly the design's vertices), else ICP.
     correct : bool
         Fit the per-region correction (GDFE re-simulations); else only report deviations.
     options : dict, optional
@@ -538,7 +543,7 @@ def diagnose_shape(design, measured, *, align="auto", correct=True, options=None
     if align not in ("auto", "correspondence", "icp"):
         raise ValueError(f"align: expected 'auto', 'correspondence' or 'icp', got {align!r}")
     regions = design_regions(design) if regions is None else regions
-    comp = _Comparer(design, measured, cells, align, opts)
+    comp = _Comparer(design, measured, cells, align, opts, from_file=measured_path != "<array>")
     R0 = design.R.copy()
     sim0 = comp.simulate(R0)
     dev, owner = comp.compare(sim0, restart=True)
