@@ -259,8 +259,9 @@ def _sheet_case(args):
     des = gdfe.from_masks(ptop, pbot, SHEET_PIXEL, SHEET_R, h=H, nz=1)
     # warm up (imports, first calls) on a small sheet of both methods, outside the timings
     for warm in (100, 2500) if n_cells > AUTO_NEWTON_CELLS else (100,):
-        gdfe.simulate(gdfe.from_masks(*mask_sheet(warm), SHEET_PIXEL, SHEET_R, h=H, nz=1), method="auto",
-                      max_iter=2)
+        with _quiet("gdfe.solver"):
+            gdfe.simulate(gdfe.from_masks(*mask_sheet(warm), SHEET_PIXEL, SHEET_R, h=H, nz=1), method="auto",
+                          max_iter=2)
     base = rss_kib()
     method = auto_method(des)
     runs = []
