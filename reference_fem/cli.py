@@ -28,7 +28,8 @@ def register(subparsers) -> None:
     p.add_argument("--E-ratio", dest="E_ratio", type=float, default=None,
                    help="E_passive / E_active (default: the Table-1 calibration)")
     p.add_argument("--eigenstrain", type=float, default=None,
-                   help="free in-plane contraction of the film, R_free - 1 (default: calibrated)")
+                   help="free in-plane contraction of the film, R_free - 1 (default: calibrated; "
+                        "write exponents as --eigenstrain=-1e-4)")
     p.add_argument("--nu", type=float, default=0.35, help="Poisson's ratio of both layers")
     p.add_argument("--width", type=float, default=1.0, help="strip width along the hinge [mm]")
     p.add_argument("--panel-length", dest="panel_length", type=float, default=2.0,
