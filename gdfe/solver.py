@@ -538,14 +538,16 @@ class Solver:
             rz = rz_new
         return x, max_iter
 
-    def _solve_newton_cg(self, V0, activation, tol, max_iter, floor=0.5, cg_rtol=1e-2, cg_max=200):
+    def _solve_newton_cg(self, V0, activation, tol, max_iter, floor=0.5, cg_rtol=None, cg_max=200):
         """Damped Newton whose steps are solved by preconditioned CG, with no 3n x 3n factorisation.
 
         The Hessian is :meth:`hessian`'s with the per-cell clamp lowered to ``floor``
         (nearer the true Hessian, hence fewer Newton steps; CG stops at negative curvature
         and the energy test rejects a bad step). Each CG iteration costs one solve with
         the factorised n x n system for three right-hand sides, one Hessian product and
-        one solve with the coarse matrix, which is factorised once per Newton step.
+        one solve with the coarse matrix, which is factorised once per Newton step. CG
+        stops at a relative (preconditioned) residual ``cg_rtol``, by default
+        ``sqrt(residual)`` clipped to [1e-3, 0.1]: loose far from the solution, tight near it.
         """
         V = np.array(V0, float)
         Vp = V[self.pin].copy()
@@ -570,7 +572,8 @@ class Solver:
             for _ in range(20):
                 t0 = time.perf_counter()
                 ops = self._newton_operator(RG, mu)
-                step, k = (None, 0) if ops is None else self._pcg(*ops, -grad, cg_rtol, cg_max)
+                rtol = cg_rtol if cg_rtol is not None else min(0.1, max(1e-3, np.sqrt(res)))
+                step, k = (None, 0) if ops is None else self._pcg(*ops, -grad, rtol, cg_max)
                 self.cg_iterations += k
                 self.timings["newton"] += time.perf_counter() - t0
                 if step is not None and np.any(step):
