@@ -237,6 +237,7 @@ class Surface:
 
 
 def _proper_flips():
+    """The four sign flips of three axes that are rotations."""
     out = []
     for sx in (1, -1):
         for sy in (1, -1):
@@ -464,13 +465,14 @@ class _Comparer:
 
 
 def _per_cell(design, dev, owner):
+    """RMS deviation per cell: over its 8 vertices (``owner`` None), or over the measured
+    points whose closest surface point it owns (NaN where none)."""
     m = design.mesh.n_cells
-    if owner is None:  # per vertex: a cell's deviation is the RMS over its vertices
-        return np.sqrt(np.mean(dev[design.mesh.cells] ** 2, axis=1)), dev[design.mesh.cells]
+    if owner is None:
+        return np.sqrt(np.mean(dev[design.mesh.cells] ** 2, axis=1))
     ss = np.bincount(owner, weights=dev**2, minlength=m)
     cnt = np.bincount(owner, minlength=m)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(cnt > 0, np.sqrt(ss / np.maximum(cnt, 1)), np.nan), None
+    return np.where(cnt > 0, np.sqrt(ss / np.maximum(cnt, 1)), np.nan)
 
 
 def _region_rms(design, cells, dev, owner):
@@ -548,7 +550,7 @@ def diagnose_shape(design, measured, *, align="auto", correct=True, options=None
     sim0 = comp.simulate(R0)
     dev, owner = comp.compare(sim0, restart=True)
     rms0 = float(np.sqrt(np.mean(dev**2)))
-    elem, _ = _per_cell(design, dev, owner)
+    elem = _per_cell(design, dev, owner)
     table = []
     for name, rc in regions.items():
         contracting = bool(np.any(design.material[rc] != gdfe.Material.RIGID))
