@@ -40,6 +40,9 @@ __all__ = ["Result", "ConvergenceError", "simulate", "rest_shapes", "system_matr
 
 log = logging.getLogger(__name__)
 
+#: A Newton solve also needs its last step below ``STEP_TOL_FACTOR * tol`` (units of h).
+STEP_TOL_FACTOR = 10.0
+
 #: The mean-centring matrix D of Eq. 4.
 D8 = np.eye(8) - 1.0 / 8.0
 
@@ -323,11 +326,14 @@ class Solver:
         energies = [E]
         mu = 1e-3
         it = 0
+        moved = np.inf  # largest vertex move of the last Newton step, in units of h
         while True:
             G = self.assemble(Q, Vp, activation)  # the plain step from V
             it += 1
             res = float(np.abs(G - V).max() / scale)
-            if res <= tol or it >= max_iter:
+            # the plain step underestimates the distance to the solution by the ratio of
+            # stretching to bending stiffness; the Newton step does not, so both must be small
+            if (res <= tol and moved <= STEP_TOL_FACTOR * tol) or it >= max_iter:
                 break
             t0 = time.perf_counter()
             grad = 2.0 * (self.L @ V - self._b).ravel()  # set by assemble
@@ -349,6 +355,7 @@ class Solver:
                 if Et < E:
                     V, Q, E, S = Vt, Qt, Et, self._last_S
                     mu = max(mu / 4.0, 1e-6)
+                    moved = float(np.abs(step).max() / scale)
                     break
                 mu *= 8.0
                 Hg = self.hessian(Q, S, activation, mu=mu)
@@ -356,6 +363,7 @@ class Solver:
                 V = G
                 Q, E = self.orient(V, activation)
                 S = self._last_S
+                moved = res
             energies.append(E)
         return G, res <= tol, it, res, energies + [self.orient(G, activation)[1]]
 
