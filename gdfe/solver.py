@@ -839,16 +839,18 @@ def simulate(design, *, method="newton", init="linear", steps=1, tol=1e-7, max_i
         ``"auto"`` picks ``"newton"`` up to :data:`AUTO_NEWTON_CELLS` cells, else
         ``"newton-cg"``. All stop at a fixed point of the same map, and the residual is
         always that of the paper's plain step.
-    init : {"linear", "flat"}
-        Starting shape of the first frame: the small-rotation solution (default), or the
+    init : {"linear", "flat"} or (n, 3) float array [mm]
+        Starting shape of the first frame: the small-rotation solution (default), the
         flat print with a seeded perturbation of 1e-4 h out of plane (the flat print itself
-        is a fixed point of the alternation, so it must be perturbed to bend at all).
+        is a fixed point of the alternation, so it must be perturbed to bend at all), or
+        given vertex positions (e.g. a shape a designer expects, or an earlier result).
     steps : int
         Number of frames the contraction is ramped over (activation k/steps for
         k = 1..steps), each started from the last: the time series of the fold.
     tol : float
         Convergence tolerance on the fixed-point residual (largest vertex move of one
-        plain iteration, in units of the film thickness h).
+        plain iteration, in units of the film thickness h). The Newton methods also need
+        their last step below ``STEP_TOL_FACTOR * tol``.
     max_iter : int, optional
         Iteration limit per frame; default 200 for the Newton methods, 5000 otherwise.
     history : int
@@ -867,8 +869,15 @@ def simulate(design, *, method="newton", init="linear", steps=1, tol=1e-7, max_i
         raise ValueError(f"method: expected {names}, got {method!r}")
     if method == "auto":
         method = auto_method(design)
-    if init not in ("linear", "flat"):
-        raise ValueError(f"init: expected 'linear' or 'flat', got {init!r}")
+    if isinstance(init, str):
+        if init not in ("linear", "flat"):
+            raise ValueError(f"init: expected 'linear', 'flat' or an (n, 3) array, got {init!r}")
+    else:
+        start = np.asarray(init, dtype=float)
+        if start.shape != design.mesh.points.shape or not np.isfinite(start).all():
+            raise ValueError(f"init: expected 'linear', 'flat' or a finite array of shape "
+                             f"{design.mesh.points.shape}, got shape {start.shape}")
+        init = "given"
     steps = check_int("steps", steps)
     if max_iter is None:
         max_iter = 200 if method.startswith("newton") else 5000
@@ -885,6 +894,8 @@ def simulate(design, *, method="newton", init="linear", steps=1, tol=1e-7, max_i
         if k == 0:
             if init == "linear":
                 V = solver.linearised_start(V, a)
+            elif init == "given":
+                V = start.copy()
             else:
                 rng = np.random.default_rng(seed)
                 V = V + np.column_stack([np.zeros((len(V), 2)), 1e-4 * design.h * rng.standard_normal(len(V))])

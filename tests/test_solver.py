@@ -175,7 +175,8 @@ def test_contraction_schedule_gives_a_monotone_fold():
 
 @pytest.mark.parametrize("kwargs, exc, match", [
     (dict(method="cg"), ValueError, "method: expected 'newton'"),
-    (dict(init="random"), ValueError, "init: expected 'linear' or 'flat'"),
+    (dict(init="random"), ValueError, "init: expected 'linear', 'flat' or an"),
+    (dict(init=np.zeros((3, 3))), ValueError, r"init: expected .* a finite array of shape"),
     (dict(steps=0), ValueError, "steps: expected an integer >= 1"),
     (dict(steps=1.5), TypeError, "steps: expected an integer"),
     (dict(tol=-1), ValueError, "tol: expected a positive"),
@@ -188,3 +189,11 @@ def test_simulate_rejects_bad_options(kwargs, exc, match):
 def test_simulate_rejects_a_non_design():
     with pytest.raises(TypeError, match="design: expected a gdfe.Design"):
         gdfe.simulate("hinge.toml")
+
+
+def test_a_given_start_reaches_the_same_shape():
+    des = gdfe.hinge(1.0, d=0.33)
+    ref = gdfe.simulate(des).check()
+    again = gdfe.simulate(des, init=ref.points + 1e-3).check()
+    assert gdfe.fold_angle(again) == pytest.approx(gdfe.fold_angle(ref), abs=1e-6)
+    assert again.iterations < ref.iterations
