@@ -15,6 +15,7 @@ __all__ = ["STUDIES", "register"]
 STUDIES = {
     "fig02": "studies.fig02_calibration",
     "fig06": "studies.fig06_angle_validation",
+    "refinement": "studies.hinge_refinement",
     "fig07": "studies.fig07_crease_fold",
     "fig08": "studies.fig08_freeform",
     "fig09": "studies.fig09_letters",
