@@ -17,8 +17,8 @@ def test_quick_bench_reports_every_section_and_verdict(capsys, tmp_path):
     assert res["machine"]["cores"] >= 1
     assert res["machine"]["factor_backend"] in ("cholmod", "superlu")
     methods = {r["method"] for r in res["hinges"]}
-    assert methods == {"newton", "anderson", "plain"}
-    assert all(r["converged"] for r in res["hinges"] if r["method"] == "newton")
+    assert methods == {"newton", "newton-cg", "anderson", "plain"}
+    assert all(r["converged"] for r in res["hinges"] if r["method"].startswith("newton"))
     assert len(res["sheets"]) == 3
     for row in res["sheets"]:
         assert row["converged"]
@@ -56,10 +56,11 @@ def test_mask_sheet_png_round_trip(tmp_path):
     np.testing.assert_array_equal(a.material, b.material)
 
 
-def test_auto_method_switches_to_newton_cg_for_large_designs():
-    top, bottom = mask_sheet(AUTO_NEWTON_CELLS + 500)
+def test_auto_method_switches_to_newton_cg_above_a_few_cells():
+    top, bottom = mask_sheet(AUTO_NEWTON_CELLS + 100)
     assert auto_method(gdfe.from_masks(top, bottom, 0.1, 0.7, nz=1)) == "newton-cg"
-    assert auto_method(gdfe.hinge(1.0, d=0.33)) == "newton"
+    assert auto_method(gdfe.hinge(1.0, d=0.33)) == "newton-cg"
+    assert auto_method(gdfe.hinge(1.0, d=0.33, cell_size=0.25, width=0.5, panel_length=0.25)) == "newton"
 
 
 @pytest.mark.parametrize("L", [1.0, 2.6])
@@ -72,6 +73,12 @@ def test_newton_cg_reaches_newtons_answer(L):
     assert gdfe.shape_distance(a.points, b.points)["max"] < 1e-8
     assert gdfe.fold_angle(b) == pytest.approx(gdfe.fold_angle(a), abs=1e-8)
     assert b.energy == pytest.approx(a.energy, rel=1e-9)
+
+
+def test_newton_cg_on_a_single_cell():
+    des = gdfe.grid_design(np.array([[int(gdfe.Material.CONTRACT_TOP)]]), 0.6, pixel=0.3, nz=1)
+    res = gdfe.simulate(des, method="newton-cg").check()
+    assert res.energy < 1e-20
 
 
 def test_iterative_linearised_start_leads_to_the_same_fixed_point():
@@ -101,3 +108,11 @@ def test_unknown_factor_backend_is_rejected(monkeypatch):
     monkeypatch.setenv("GDFE_FACTOR", "mumps")
     with pytest.raises(ValueError, match="GDFE_FACTOR"):
         factor_backend()
+
+
+def test_time_at_equal_error_interpolates_log_log():
+    from gdfe.bench import _time_at_error
+
+    levels = [(1e-1, 1.0), (1e-3, 100.0)]
+    assert _time_at_error(levels, 1e-2) == pytest.approx(10.0)
+    assert _time_at_error(levels, 1e-3) == pytest.approx(100.0)
