@@ -45,6 +45,8 @@ PANEL_CELLS = 4
 #: Strip width [mm]: the core's narrow strip, or two cells where that is narrower (the fold
 #: of so narrow a strip does not depend on its width: < 0.001 rad).
 NARROW = 0.5
+#: Largest cell [mm]: two rows across the 0.5 mm strip keep the cells' aspect below 1.5.
+MAX_CELL = 0.36
 
 
 def _cells(resolution):
@@ -68,7 +70,8 @@ def simulate_fold(L, R, h, *, alpha_max=None, resolution="coarse"):
         Switches on the exposure-limited activation (``saturation``): the activation rate
         is ``1 - (alpha / alpha_max)**2`` with ``alpha`` the fold of the current shape.
     resolution : {"coarse", "default", "fine"}
-        Cells across the hinge (16, 24, 32) and samples of the activation ramp (4, 6, 8).
+        Cells across the hinge (16, 24, 32, more where a cell would exceed ``MAX_CELL``) and
+        samples of the activation ramp (4, 6, 8).
 
     Returns
     -------
@@ -82,7 +85,7 @@ def simulate_fold(L, R, h, *, alpha_max=None, resolution="coarse"):
 
     cells, steps = _cells(resolution)
     t0 = time.perf_counter()
-    cell = L / cells
+    cell = min(L / cells, MAX_CELL)
     design = gdfe.hinge(L, R=R, h=h, cell_size=cell, panel_length=PANEL_CELLS * cell,
                         width=min(NARROW, 2 * cell))
     if alpha_max is None:
