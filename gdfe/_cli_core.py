@@ -41,8 +41,8 @@ def register(sub):
 
 def _solver_args(p, defaults_from_file=False):
     d = None if defaults_from_file else 1
-    p.add_argument("--method", choices=["newton", "anderson", "plain"], default=None,
-                   help="solver (default newton)")
+    p.add_argument("--method", choices=["auto", "newton", "newton-cg", "anderson", "plain"], default=None,
+                   help="solver (default auto: newton for small designs, newton-cg for larger ones)")
     p.add_argument("--steps", type=int, default=d, help="frames of the contraction ramp (default 1)")
     p.add_argument("--tol", type=float, default=None, help="residual tolerance (default 1e-7, in units of h)")
     p.add_argument("--max-iter", type=int, default=None, help="iteration limit per frame")

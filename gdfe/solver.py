@@ -828,7 +828,7 @@ def auto_method(design):
     return "newton" if design.n_cells <= AUTO_NEWTON_CELLS else "newton-cg"
 
 
-def simulate(design, *, method="newton", init="linear", steps=1, tol=1e-7, max_iter=None,
+def simulate(design, *, method="auto", init="linear", steps=1, tol=1e-7, max_iter=None,
              history=6, seed=0):
     """Simulate the heat-activated shape change of a design.
 
@@ -836,15 +836,15 @@ def simulate(design, *, method="newton", init="linear", steps=1, tol=1e-7, max_i
     ----------
     design : Design
         The film, its material map and contraction ratios.
-    method : {"newton", "newton-cg", "auto", "anderson", "plain"}
+    method : {"auto", "newton", "newton-cg", "anderson", "plain"}
         ``"plain"`` is the paper's alternation; ``"anderson"`` accelerates it with an
-        energy safeguard; ``"newton"`` (default) takes damped Newton steps on the same
-        energy (:meth:`Solver.hessian`), factorising the 3n x 3n Hessian each step;
+        energy safeguard; ``"newton"`` takes damped Newton steps on the same energy
+        (:meth:`Solver.hessian`), factorising the 3n x 3n Hessian each step;
         ``"newton-cg"`` solves the Newton steps by conjugate gradients preconditioned with
-        the factorised n x n system and a coarse grid, which is what large sheets need;
-        ``"auto"`` picks ``"newton"`` up to :data:`AUTO_NEWTON_CELLS` cells, else
-        ``"newton-cg"``. All stop at a fixed point of the same map, and the residual is
-        always that of the paper's plain step.
+        the factorised n x n system and a coarse grid; ``"auto"`` (default) picks
+        ``"newton"`` up to :data:`AUTO_NEWTON_CELLS` cells, else ``"newton-cg"``. All stop
+        at a fixed point of the same map, and the residual is always that of the paper's
+        plain step.
     init : {"linear", "flat"} or (n, 3) float array [mm]
         Starting shape of the first frame: the small-rotation solution (default), the
         flat print with a seeded perturbation of 1e-4 h out of plane (the flat print itself
@@ -873,6 +873,8 @@ def simulate(design, *, method="newton", init="linear", steps=1, tol=1e-7, max_i
     if method not in METHODS:
         names = ", ".join(map(repr, METHODS[:-1])) + f" or {METHODS[-1]!r}"
         raise ValueError(f"method: expected {names}, got {method!r}")
+    if not isinstance(design, Design):
+        raise TypeError(f"design: expected a gdfe.Design, got {type(design).__name__}")
     if method == "auto":
         method = auto_method(design)
     if isinstance(init, str):
