@@ -190,7 +190,8 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
     panel_length : float [mm]
         Length of each rigid panel along x (does not change the fold angle).
     cell_size : float [mm], optional
-        In-plane cell size; default ``length / 16`` (16 cells across the hinge).
+        In-plane cell size; default ``min(length / 16, width / 2)``: 16 cells across the
+        hinge, and at least two across the strip with an aspect ratio of at most 1.5.
     nz : int
         Cell layers through the thickness.
     isotropy : float
@@ -209,8 +210,8 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
     R = check_ratio("R", R)
     if face not in ("top", "bottom"):
         raise ValueError(f"face: expected 'top' or 'bottom', got {face!r}")
-    if cell_size is None:
-        cell_size = length / 16.0
+    if cell_size is None:  # 16 cells across the hinge, and cells no longer than twice their width
+        cell_size = min(length / 16.0, width / 2.0)
     cell_size = check_positive("cell_size", cell_size)
     nh = max(1, int(round(length / cell_size)))
     dx = length / nh

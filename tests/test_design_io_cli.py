@@ -119,7 +119,7 @@ def test_curvature_of_a_uniaxial_hinge_is_the_eq2_curvature():
 
 
 def test_fold_angle_beyond_pi():
-    res = gdfe.simulate(gdfe.hinge(4.0, R=0.7, isotropy=0.0, width=0.25)).check()
+    res = gdfe.simulate(gdfe.hinge(4.0, R=0.7, isotropy=0.0, width=0.25, cell_size=4.0 / 16)).check()
     assert gdfe.fold_angle(res) == pytest.approx(2 * 16 * np.arctan(0.3 * 4 / (2 * 16 * 0.29)), abs=1e-4)
     assert gdfe.fold_angle(res) > np.pi
 
