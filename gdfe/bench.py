@@ -79,7 +79,7 @@ SETTINGS = {
              "sheet_sizes": (1_000, 10_000, 100_000), "sheet_repeats": 3, "big_repeats": 1,
              "big": 50_000, "hessian_max": 10_000, "fem": True, "gdfe_levels": (4, 8, 16, 32, 64),
              "fem_levels": tuple(range(len(FEM_LEVELS)))},
-    "quick": {"hinge_lengths": (1.0, 2.6), "hinge_cells": 4, "repeats": 1, "plain_max_iter": 100,
+    "quick": {"hinge_lengths": (1.0,), "hinge_cells": 4, "repeats": 1, "plain_max_iter": 100,
               "sheet_sizes": (64, 144, 256), "sheet_repeats": 1, "big_repeats": 1, "big": 50_000,
               "hessian_max": 256, "fem": False, "gdfe_levels": (2, 4, 8), "fem_levels": ()},
 }
@@ -509,6 +509,14 @@ def _verdicts(result, hinge_verdict, cfg):
     v["growth"] = {"goal": GOALS["growth"], "value": expo, "fem_value": fem_expo,
                    "met": None if expo is None else True, "stated": True,
                    "note": "time ~ cells^exponent, least squares in log-log over the converged sheets"}
+    if expo is not None and not any(r["cells"] >= 500_000 for r in sheets):
+        last = max(conv, key=lambda r: r["cells"])
+        scale = 1e6 / last["cells"]
+        mem_expo = _fit_exponent([r["cells"] for r in conv], [r["peak_rss_mib"] for r in conv])
+        v["growth"]["projected_1e6"] = {"seconds": last["seconds"] * scale ** expo,
+                                        "peak_rss_mib": last["peak_rss_mib"] * scale ** max(mem_expo, 1.0),
+                                        "note": "not run: extrapolated from the largest sheet with the fitted "
+                                                "exponents (memory at least linear)"}
     return v
 
 
@@ -629,6 +637,10 @@ def format_table(res):
             extra = f" (outer iteration of the solver used: {v['solver_iteration_ratio']:.1f}x)"
         if v.get("fem_value") is not None:
             extra = f" (FEM hinge levels: {v['fem_value']:.2f})"
+        if "projected_1e6" in v:
+            pj = v["projected_1e6"]
+            extra += (f"; 10^6 cells not run, projected {pj['seconds']:.3g} s and "
+                      f"{pj['peak_rss_mib'] / 1024:.2g} GiB")
         note = f" [{v['note']}]" if v.get("note") and (v["met"] is None or "quick" in v["note"]) else ""
         lines.append(f"  {_verdict_word(v):>7}  {v['goal']}: {val}{extra}{note}")
     lines.append(f"\n({res['seconds']:.0f} s in all)")

@@ -584,13 +584,19 @@ class Solver:
                 step, k = (None, 0) if ops is None else self._pcg(*ops, -grad, rtol, cg_max)
                 self.cg_iterations += k
                 self.timings["newton"] += time.perf_counter() - t0
+                accepted = False
                 if step is not None and np.any(step):
-                    Vt = V + step
-                    Qt, Et = self.orient(Vt, activation)
-                    if Et < E:
-                        V, Q, E, S = Vt, Qt, Et, self._last_S
-                        mu = max(mu / 4.0, 1e-8)
-                        break
+                    # the full step, then two shorter ones along it before damping the model
+                    for alpha in (1.0, 0.5, 0.25):
+                        Vt = V + alpha * step
+                        Qt, Et = self.orient(Vt, activation)
+                        if Et < E:
+                            V, Q, E, S = Vt, Qt, Et, self._last_S
+                            mu = max(mu / 4.0, 1e-8) if alpha == 1.0 else 2.0 * mu
+                            accepted = True
+                            break
+                if accepted:
+                    break
                 mu *= 8.0
             else:  # no descent even with heavy damping: take the plain step
                 V = G
