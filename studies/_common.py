@@ -1,7 +1,7 @@
 """Shared plumbing of the figure studies: resolutions, headline numbers, output, ``main``.
 
 Every study module has ``run(resolution, out) -> dict``, ``plot(result, out)`` and
-``main(argv)``. The dict it returns has at least
+``main(argv)`` (``main = main_of(__name__)``). The dict it returns has at least
 
 - ``study`` (name), ``figure`` (the paper's figure), ``title``, ``resolution``;
 - ``headlines``: list of :func:`headline` dicts, the numbers a regression test asserts;
@@ -149,6 +149,18 @@ def study_main(module, argv=None):
     args = p.parse_args(argv)
     out = args.out if args.out is not None else Path("out") / module.NAME
     return run_and_print(module, args.resolution, out, args.json)
+
+
+def main_of(module_name):
+    """The ``main(argv=None)`` of a study module: :func:`study_main` on ``sys.modules[module_name]``.
+
+    A study defines ``main = main_of(__name__)``.
+    """
+
+    def main(argv=None):
+        return study_main(sys.modules[module_name], argv)
+
+    return main
 
 
 def run_and_print(module, resolution, out, as_json):

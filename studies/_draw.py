@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 #: Face colours of the materials (rigid, contract top, contract bottom, free shrink).
@@ -55,3 +57,14 @@ def pattern_strip(ax, material, cell, y=0.0, height=1.0):
     quads = [[(a, y), (a + cell, y), (a + cell, y + height), (a, y + height)] for a in x0]
     ax.add_collection(PolyCollection(quads, facecolors=[COLOURS[int(m)] for m in material], edgecolors="none"))
     ax.set_xlim(0, n * cell)
+
+
+def save_figure(fig, out, name, title=None, dpi=110):
+    """Give ``fig`` its title (if any), lay it out, write it to ``out/NAME.png`` and close it."""
+    import matplotlib.pyplot as plt
+
+    if title is not None:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(Path(out) / f"{name}.png", dpi=dpi)
+    plt.close(fig)

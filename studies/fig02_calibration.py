@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from studies._common import check_resolution, finish, headline, pyplot, study_main
+from studies._common import check_resolution, finish, headline, main_of, pyplot
 
 NAME = "fig02"
 PAPER_K = 0.3706
@@ -136,9 +136,8 @@ def run(resolution="default", out=None, data=None):
 
 
 def plot(result, out):
-    from pathlib import Path
-
     from studies import calibration_models as cm
+    from studies._draw import save_figure
 
     plt = pyplot()
     D = result["data"]
@@ -192,15 +191,10 @@ def plot(result, out):
     a.set(xlabel="passive thickness d [mm]", ylabel="contraction ratio R", ylim=(-0.6, 1.05),
           title="(d) Eq. 3 under each reading (h = 0.29 mm)")
     a.legend(fontsize=7, loc="lower right")
-    fig.tight_layout()
-    fig.savefig(Path(out) / f"{NAME}.png", dpi=110)
-    plt.close(fig)
+    save_figure(fig, out, NAME)
 
 
-def main(argv=None):
-    import sys
-
-    return study_main(sys.modules[__name__], argv)
+main = main_of(__name__)
 
 
 if __name__ == "__main__":

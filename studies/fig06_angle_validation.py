@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from studies._common import check_resolution, finish, headline, n_jobs, pyplot, study_main
+from studies._common import check_resolution, finish, headline, n_jobs, main_of, pyplot
 
 NAME = "fig06"
 LENGTHS = (1.0, 1.6, 2.6)
@@ -117,10 +117,8 @@ def run(resolution="default", out=None):
 
 
 def plot(result, out):
-    from pathlib import Path
-
     import gdfe
-    from studies._draw import side_view
+    from studies._draw import save_figure, side_view
 
     plt = pyplot()
     fig = plt.figure(figsize=(12, 7.5))
@@ -162,15 +160,10 @@ def plot(result, out):
         ax.set_xticks(WIDTHS)
         ax.set(xlabel="strip width [mm]", ylabel="fold angle [rad]", title="L = 2.6 mm: specimen dependence")
         ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(Path(out) / f"{NAME}.png", dpi=110)
-    plt.close(fig)
+    save_figure(fig, out, NAME)
 
 
-def main(argv=None):
-    import sys
-
-    return study_main(sys.modules[__name__], argv)
+main = main_of(__name__)
 
 
 if __name__ == "__main__":

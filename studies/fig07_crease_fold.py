@@ -32,7 +32,7 @@ import math
 
 import numpy as np
 
-from studies._common import check_resolution, finish, headline, n_jobs, pyplot, study_main
+from studies._common import check_resolution, finish, headline, n_jobs, main_of, pyplot
 
 NAME = "fig07"
 H = 0.29
@@ -262,10 +262,8 @@ def _work(case):
 
 
 def plot(result, out):
-    from pathlib import Path
-
     from gdfe import inverse as inv
-    from studies._draw import COLOURS, surface
+    from studies._draw import COLOURS, save_figure, surface
 
     plt = pyplot()
     sh = result["_shapes"]
@@ -312,15 +310,10 @@ def plot(result, out):
         ax = fig.add_subplot(2, 3, 5 + k, projection="3d")
         surface(ax, pts, des, elev=elev, azim=azim, edges=False)
         ax.set_title(f"(d) crane folded by GDFE (view {k + 1})", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(Path(out) / f"{NAME}.png", dpi=110)
-    plt.close(fig)
+    save_figure(fig, out, NAME)
 
 
-def main(argv=None):
-    import sys
-
-    return study_main(sys.modules[__name__], argv)
+main = main_of(__name__)
 
 
 if __name__ == "__main__":

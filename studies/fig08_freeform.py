@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from studies._common import check_resolution, finish, headline, n_jobs, pyplot, study_main
+from studies._common import check_resolution, finish, headline, n_jobs, main_of, pyplot
 
 NAME = "fig08"
 H = 0.29
@@ -202,7 +202,7 @@ def run(resolution="default", out=None):
 
 
 def plot(result, out):
-    from studies._draw import COLOURS, surface
+    from studies._draw import COLOURS, save_figure, surface
 
     plt = pyplot()
     fig = plt.figure(figsize=(13, 8.5))
@@ -225,17 +225,12 @@ def plot(result, out):
         s = next(d for d in result["surfaces"] if d["pattern"] == p)
         ax3.set_title(f"{p}: K = {s['gaussian']:.3f} /mm², k_xy = {s['k_xy']:.3f} /mm\n"
                       f"k_xx = {s['k_xx']:.3f}, k_yy = {s['k_yy']:.3f} /mm", fontsize=8)
-    fig.suptitle(f"Fig. 8: freeform surfaces from mask pairs (R = {result['R']:.4f}, pixel {result['pixel_mm']} mm; "
-                 f"homogenised estimate f(1-R)/h = {result['estimate_curvature']:.3f} /mm)", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(Path(out) / f"{NAME}.png", dpi=110)
-    plt.close(fig)
+    title = (f"Fig. 8: freeform surfaces from mask pairs (R = {result['R']:.4f}, pixel {result['pixel_mm']} mm; "
+             f"homogenised estimate f(1-R)/h = {result['estimate_curvature']:.3f} /mm)")
+    save_figure(fig, out, NAME, title=title)
 
 
-def main(argv=None):
-    import sys
-
-    return study_main(sys.modules[__name__], argv)
+main = main_of(__name__)
 
 
 if __name__ == "__main__":

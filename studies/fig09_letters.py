@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from studies._common import check_resolution, finish, headline, n_jobs, pyplot, study_main
+from studies._common import check_resolution, finish, headline, n_jobs, main_of, pyplot
 
 NAME = "fig09"
 H = 0.29
@@ -138,9 +138,7 @@ def run(resolution="default", out=None):
 
 
 def plot(result, out):
-    from pathlib import Path
-
-    from studies._draw import pattern_strip
+    from studies._draw import pattern_strip, save_figure
 
     plt = pyplot()
     shapes = result["_shapes"]
@@ -181,15 +179,10 @@ def plot(result, out):
     ax.set(xlabel="position along the printed strip [mm]",
            title="printed patterns (grey rigid, orange contracting on top: anticlockwise, blue on the bottom: "
                  "clockwise) and couples (L, r) [mm]")
-    fig.tight_layout()
-    fig.savefig(Path(out) / f"{NAME}.png", dpi=110)
-    plt.close(fig)
+    save_figure(fig, out, NAME)
 
 
-def main(argv=None):
-    import sys
-
-    return study_main(sys.modules[__name__], argv)
+main = main_of(__name__)
 
 
 if __name__ == "__main__":

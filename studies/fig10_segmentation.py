@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from studies._common import check_resolution, finish, headline, n_jobs, pyplot, study_main
+from studies._common import check_resolution, finish, headline, n_jobs, main_of, pyplot
 
 NAME = "fig10"
 H = 0.29
@@ -146,7 +146,7 @@ def run(resolution="default", out=None):
 
 
 def plot(result, out):
-    from pathlib import Path
+    from studies._draw import save_figure
 
     plt = pyplot()
     P = np.array(result["sketch_mm"])
@@ -177,17 +177,12 @@ def plot(result, out):
         a.set_aspect("equal")
         a.set(xlabel="mm", ylabel="mm")
         a.legend(fontsize=7, loc="upper right")
-    fig.suptitle("Fig. 10: S sketch, tangent graph τ(s) split by minimising Σε + mΔ (exact DP), "
-                 "and the shapes from the couples", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(Path(out) / f"{NAME}.png", dpi=110)
-    plt.close(fig)
+    title = ("Fig. 10: S sketch, tangent graph τ(s) split by minimising Σε + mΔ (exact DP), "
+             "and the shapes from the couples")
+    save_figure(fig, out, NAME, title=title)
 
 
-def main(argv=None):
-    import sys
-
-    return study_main(sys.modules[__name__], argv)
+main = main_of(__name__)
 
 
 if __name__ == "__main__":

@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from studies._common import check_resolution, finish, headline, n_jobs, pyplot, study_main
+from studies._common import check_resolution, finish, headline, n_jobs, main_of, pyplot
 
 NAME = "fig11"
 H = 0.29
@@ -153,7 +153,7 @@ def run(resolution="default", out=None):
 
 
 def plot(result, out):
-    from pathlib import Path
+    from studies._draw import save_figure
 
     plt = pyplot()
     W, Rs = result["w_min_mm"], result["R"]
@@ -188,17 +188,12 @@ def plot(result, out):
         ax.set_yticks(range(len(Rs)), [f"{R:g}" for R in Rs])
         ax.set(xlabel="w_min [mm]", ylabel="R", title=label + "\n(corners in brackets)")
         fig.colorbar(im, ax=ax, shrink=0.6)
-    fig.suptitle(f"Fig. 11: circle of radius {RADIUS:g} mm, blocks rounded to the nearest count of w_min; "
-                 f"grey target, red GDFE (orange frame: the paper's worst case)", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(Path(out) / f"{NAME}.png", dpi=110)
-    plt.close(fig)
+    title = (f"Fig. 11: circle of radius {RADIUS:g} mm, blocks rounded to the nearest count of w_min; "
+             f"grey target, red GDFE (orange frame: the paper's worst case)")
+    save_figure(fig, out, NAME, title=title)
 
 
-def main(argv=None):
-    import sys
-
-    return study_main(sys.modules[__name__], argv)
+main = main_of(__name__)
 
 
 if __name__ == "__main__":
