@@ -195,34 +195,7 @@ def svk_state(disc, u, lam, mu, G, *, tangent=True):
         Internal force ``int P : grad(phi) dV`` (the residual; there are no external loads).
     K : (3N, 3N) csr_matrix [N/mm] or None
     """
-    n = 3 * disc.n_bf
-    U = u.reshape(-1, 3)
-    Jst = np.prod(1.0 / G, axis=1)
-    energy = 0.0
-    fe = np.empty((disc.n_el, disc.n_bf, 3))
-    Ke = np.empty((disc.n_el, n, n)) if tangent else None
-    for s in disc.chunks():
-        dphi, w = disc.dphi[s], disc.w[s]
-        c = dphi.shape[0]
-        F = np.einsum("cai,cqaJ->cqiJ", U[disc.edofs[s]], dphi)
-        F[..., 0, 0] += 1.0
-        F[..., 1, 1] += 1.0
-        F[..., 2, 2] += 1.0
-        g = G[s]
-        gg = (g[:, :, None] * g[:, None, :])[:, None]  # (c, 1, 3, 3): G_J G_L
-        Ee = 0.5 * (gg * np.einsum("cqiJ,cqiL->cqJL", F, F) - np.eye(3))
-        tr = np.trace(Ee, axis1=-2, axis2=-1)
-        l_, m_, j_ = lam[s][:, None], mu[s][:, None], Jst[s][:, None]
-        Se = 2 * m_[..., None, None] * Ee
-        for i in range(3):
-            Se[..., i, i] += l_ * tr
-        S = j_[..., None, None] * gg * Se
-        energy += float(np.sum(w * j_ * (0.5 * l_ * tr**2 + m_ * np.einsum("cqJL,cqJL->cq", Ee, Ee))))
-        P = np.einsum("cqiJ,cqJL->cqiL", F, S)
-        fe[s] = np.einsum("cq,cqiL,cqaL->cai", w, P, dphi)
-        if tangent:
-            Ke[s] = _tangent(dphi, w, F, S, g, lam[s], mu[s], Jst[s]).reshape(c, n, n)
-    return energy, disc.vector(fe), (disc.sparse(Ke) if tangent else None)
+    return _state(disc, u, lam, mu, G, tangent, _svk_chunk)
 
 
 def neohookean_state(disc, u, lam, mu, G, *, tangent=True):
@@ -237,6 +210,18 @@ def neohookean_state(disc, u, lam, mu, G, *, tangent=True):
 
     Parameters and returns as :func:`svk_state`.
     """
+    return _state(disc, u, lam, mu, G, tangent, _neohookean_chunk)
+
+
+def _state(disc, u, lam, mu, G, tangent, chunk):
+    """Energy, internal force and tangent of an eigenstrained solid, assembled chunk by chunk.
+
+    ``chunk(dphi, w, F, lam, mu, g, jst, tangent)`` is the material law on one chunk of ``c``
+    elements, with ``F = I + grad u`` of shape ``(c, n_qp, 3, 3)``, ``g`` the chunk's rows of ``G``
+    and ``jst`` its ``J*``. It returns the chunk's energy, first Piola stress ``P`` ``(c, n_qp, 3, 3)``
+    and element tangents ``(c, 3 n_bf, 3 n_bf)`` (None without ``tangent``), or None where the
+    configuration is not admissible: then the energy is infinite, the force NaN and there is no tangent.
+    """
     n = 3 * disc.n_bf
     U = u.reshape(-1, 3)
     Jst = np.prod(1.0 / G, axis=1)
@@ -245,36 +230,64 @@ def neohookean_state(disc, u, lam, mu, G, *, tangent=True):
     Ke = np.empty((disc.n_el, n, n)) if tangent else None
     for s in disc.chunks():
         dphi, w = disc.dphi[s], disc.w[s]
-        c = dphi.shape[0]
-        g = G[s][:, None, None, :]  # (c, 1, 1, 3)
         F = np.einsum("cai,cqaJ->cqiJ", U[disc.edofs[s]], dphi)
         F[..., 0, 0] += 1.0
         F[..., 1, 1] += 1.0
         F[..., 2, 2] += 1.0
-        Fe = F * g
-        Je = np.linalg.det(Fe)
-        if np.any(~(Je > 0)):
-            nan = np.full(disc.ndofs, np.nan)
-            return np.inf, nan, None
-        lnJ = np.log(Je)
-        Finv = np.linalg.inv(Fe)
-        FinvT = np.swapaxes(Finv, -1, -2)
-        l_, m_, j_ = lam[s][:, None], mu[s][:, None], Jst[s][:, None]
-        I1 = np.einsum("cqiJ,cqiJ->cq", Fe, Fe)
-        energy += float(np.sum(w * j_ * (0.5 * m_ * (I1 - 3) - m_ * lnJ + 0.5 * l_ * lnJ**2)))
-        Pe = m_[..., None, None] * (Fe - FinvT) + (l_ * lnJ)[..., None, None] * FinvT
-        P = j_[..., None, None] * Pe * g
+        out = chunk(dphi, w, F, lam[s], mu[s], G[s], Jst[s], tangent)
+        if out is None:
+            return np.inf, np.full(disc.ndofs, np.nan), None
+        e, P, K = out
+        energy += e
         fe[s] = np.einsum("cq,cqiL,cqaL->cai", w, P, dphi)
-        if not tangent:
-            continue
-        dt = dphi * g
-        W = np.einsum("cqJi,cqaJ->cqai", Finv, dt).reshape(c, disc.n_qp, n)
-        wj = w * j_
-        K = _bmm(W * (wj * l_)[:, :, None], W).reshape(c, disc.n_bf, 3, disc.n_bf, 3)
-        K += _bmm(W * (wj * (m_ - l_ * lnJ))[:, :, None], W).reshape(
-            c, disc.n_bf, 3, disc.n_bf, 3).transpose(0, 1, 4, 3, 2)
-        Kd = np.einsum("cqaJ,cqbJ->cab", dt * (wj * m_)[:, :, None, None], dt, optimize=True)
-        for i in range(3):
-            K[:, :, i, :, i] += Kd
-        Ke[s] = K.reshape(c, n, n)
+        if tangent:
+            Ke[s] = K
     return energy, disc.vector(fe), (disc.sparse(Ke) if tangent else None)
+
+
+def _svk_chunk(dphi, w, F, lam, mu, g, jst, tangent):
+    """The SVK law on one chunk of elements (see :func:`_state`)."""
+    c, n = dphi.shape[0], 3 * dphi.shape[2]
+    gg = (g[:, :, None] * g[:, None, :])[:, None]  # (c, 1, 3, 3): G_J G_L
+    Ee = 0.5 * (gg * np.einsum("cqiJ,cqiL->cqJL", F, F) - np.eye(3))
+    tr = np.trace(Ee, axis1=-2, axis2=-1)
+    l_, m_, j_ = lam[:, None], mu[:, None], jst[:, None]
+    Se = 2 * m_[..., None, None] * Ee
+    for i in range(3):
+        Se[..., i, i] += l_ * tr
+    S = j_[..., None, None] * gg * Se
+    energy = float(np.sum(w * j_ * (0.5 * l_ * tr**2 + m_ * np.einsum("cqJL,cqJL->cq", Ee, Ee))))
+    P = np.einsum("cqiJ,cqJL->cqiL", F, S)
+    K = _tangent(dphi, w, F, S, g, lam, mu, jst).reshape(c, n, n) if tangent else None
+    return energy, P, K
+
+
+def _neohookean_chunk(dphi, w, F, lam, mu, g, jst, tangent):
+    """The neo-Hookean law on one chunk of elements (see :func:`_state`); None where ``J_e <= 0``."""
+    c, n_qp, n_bf = dphi.shape[:3]
+    n = 3 * n_bf
+    g = g[:, None, None, :]  # (c, 1, 1, 3)
+    Fe = F * g
+    Je = np.linalg.det(Fe)
+    if np.any(~(Je > 0)):
+        return None
+    lnJ = np.log(Je)
+    Finv = np.linalg.inv(Fe)
+    FinvT = np.swapaxes(Finv, -1, -2)
+    l_, m_, j_ = lam[:, None], mu[:, None], jst[:, None]
+    I1 = np.einsum("cqiJ,cqiJ->cq", Fe, Fe)
+    energy = float(np.sum(w * j_ * (0.5 * m_ * (I1 - 3) - m_ * lnJ + 0.5 * l_ * lnJ**2)))
+    Pe = m_[..., None, None] * (Fe - FinvT) + (l_ * lnJ)[..., None, None] * FinvT
+    P = j_[..., None, None] * Pe * g
+    if not tangent:
+        return energy, P, None
+    dt = dphi * g
+    W = np.einsum("cqJi,cqaJ->cqai", Finv, dt).reshape(c, n_qp, n)
+    wj = w * j_
+    K = _bmm(W * (wj * l_)[:, :, None], W).reshape(c, n_bf, 3, n_bf, 3)
+    K += _bmm(W * (wj * (m_ - l_ * lnJ))[:, :, None], W).reshape(
+        c, n_bf, 3, n_bf, 3).transpose(0, 1, 4, 3, 2)
+    Kd = np.einsum("cqaJ,cqbJ->cab", dt * (wj * m_)[:, :, None, None], dt, optimize=True)
+    for i in range(3):
+        K[:, :, i, :, i] += Kd
+    return energy, P, K.reshape(c, n, n)
