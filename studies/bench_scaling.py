@@ -7,7 +7,8 @@ seconds to convergence against the number of elements for the PNG-mask sheets (1
 10^5 cells, 10^6 at ``resolution="fine"``), the L = 1.6 mm hinge at five GDFE
 resolutions and the same hinge with the nonlinear FEM at four mesh levels.
 
-Writes ``bench.json``, ``bench_scaling.png`` and ``bench.txt`` (the benchmark's table).
+Run ``python -m studies.bench_scaling [--out DIR] [--resolution R]`` or ``gdfe study bench-scaling``;
+writes ``bench.json``, ``bench_scaling.png`` and ``bench.txt`` (the benchmark's table).
 """
 
 from __future__ import annotations
@@ -18,7 +19,6 @@ from pathlib import Path
 
 from gdfe import bench
 
-NAME = "bench_scaling"
 #: Sheet sizes [cells] per resolution; "coarse" is the benchmark's --quick mode.
 SIZES = {"coarse": None, "default": (1_000, 10_000, 100_000), "fine": (1_000, 10_000, 100_000, 1_000_000)}
 
@@ -42,7 +42,7 @@ def plot(result, out):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--resolution", choices=list(SIZES), default="default")
-    parser.add_argument("--out", type=Path, default=Path("out") / NAME)
+    parser.add_argument("--out", type=Path, default=Path("out") / "bench_scaling")
     args = parser.parse_args(argv)
     result = run(args.resolution, args.out)
     print(bench.format_table(result))

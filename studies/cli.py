@@ -23,6 +23,7 @@ STUDIES = {
     "fig11": "studies.fig11_design_validation",
     "compare": "studies.compare_models",
     "blind-diagnosis": "studies.blind_diagnosis",
+    "bench-scaling": "studies.bench_scaling",
 }
 
 RESOLUTIONS = ("coarse", "default", "fine")

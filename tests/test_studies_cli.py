@@ -19,6 +19,7 @@ def test_registry_lists_every_figure_and_the_other_studies():
         assert name in STUDIES
     assert STUDIES["compare"] == "studies.compare_models"
     assert STUDIES["blind-diagnosis"] == "studies.blind_diagnosis"
+    assert STUDIES["bench-scaling"] == "studies.bench_scaling"
 
 
 @pytest.mark.parametrize("model, K, r2", [("eq1", 0.0608, 0.576), ("eq1-d1", 0.3708, 0.796)])
@@ -61,6 +62,29 @@ def test_study_runs_as_a_module(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "K, regressor sqrt(h/d)*L" in proc.stdout
     assert (tmp_path / "fig02.png").is_file()
+
+
+def test_study_command_runs_the_bench_study_as_a_plain_study(tmp_path, capsys, monkeypatch):
+    import studies.bench_scaling
+
+    seen = {}
+
+    def run(resolution, out):
+        seen.update(resolution=resolution, out=out)
+        return {"mode": "quick"}
+
+    monkeypatch.setattr(studies.bench_scaling, "run", run)
+    assert main(["study", "bench-scaling", "--out", str(tmp_path), "--resolution", "coarse", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out) == {"mode": "quick"}
+    assert seen == {"resolution": "coarse", "out": tmp_path}
+
+
+@pytest.mark.slow
+def test_study_command_runs_the_bench(tmp_path, capsys):
+    assert main(["study", "bench-scaling", "--out", str(tmp_path), "--resolution", "coarse"]) == 0
+    assert f"bench-scaling: wrote {tmp_path}" in capsys.readouterr().out
+    for name in ("bench.json", "bench_scaling.png", "bench.txt"):
+        assert (tmp_path / name).is_file(), name
 
 
 def test_report_links_figures_and_skips_missing_studies(tmp_path, monkeypatch):
