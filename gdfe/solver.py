@@ -45,6 +45,8 @@ log = logging.getLogger(__name__)
 MU_MIN = 1e-6
 #: A Newton solve also needs its last step below ``STEP_TOL_FACTOR * tol`` (units of h).
 STEP_TOL_FACTOR = 10.0
+#: Relative rise of the energy a full Newton step may cause and still be taken (round-off).
+ENERGY_ROUNDOFF = 1e-13
 
 #: The mean-centring matrix D of Eq. 4.
 D8 = np.eye(8) - 1.0 / 8.0
@@ -317,58 +319,96 @@ class Solver:
     def energy(self, V, activation=1.0):
         return self.orient(np.asarray(V, float), activation)[1]
 
-    def _solve_newton(self, V0, activation, tol, max_iter):
-        """Damped Newton on the rotation-reduced energy; see :meth:`Solver.hessian`."""
+    def _solve_newton(self, V0, activation, tol, max_iter, directions, alphas=(1.0,)):
+        """Damped Newton on the rotation-reduced energy; the outer loop of both Newton methods.
+
+        ``directions(Q, S, grad, res)`` returns a function of the damping ``mu`` giving the
+        Newton step as an ``(n, 3)`` array (None when it cannot be computed). A step is
+        tried at the lengths ``alphas``; the first that lowers the energy is taken and
+        ``mu`` shrinks (a full step) or doubles (a shortened one); when none does, ``mu``
+        grows eightfold and the step is recomputed.
+
+        Stopping: the plain step's residual must be below ``tol`` (the paper's test) and
+        the estimated distance to the solution below ``STEP_TOL_FACTOR * tol`` (both in
+        units of h). The plain step underestimates that distance by the ratio of
+        stretching to bending stiffness; the Newton step does not. The estimate is the
+        last step's length ``|s_k|``, or ``|s_k| theta / (1 - theta)`` with the contraction
+        ``theta = |s_k| / |s_k-1|`` of two full steps when that is smaller (the bound of
+        a sequence contracting by ``theta``).
+        """
         V = np.array(V0, float)
         Vp = V[self.pin].copy()
         scale = self.design.h
-        n = self.n
-        fdof = (3 * self.free[:, None] + np.arange(3)).ravel()
         Q, E = self.orient(V, activation)
         S = self._last_S
         energies = [E]
         mu = 1e-3
         it = 0
-        moved = np.inf  # largest vertex move of the last Newton step, in units of h
+        error = prev = np.inf  # estimated distance to the solution; last full step, in units of h
         while True:
             G = self.assemble(Q, Vp, activation)  # the plain step from V
             it += 1
             res = float(np.abs(G - V).max() / scale)
-            # the plain step underestimates the distance to the solution by the ratio of
-            # stretching to bending stiffness; the Newton step does not, so both must be small
-            if (res <= tol and moved <= STEP_TOL_FACTOR * tol) or it >= max_iter:
+            if (res <= tol and error <= STEP_TOL_FACTOR * tol) or it >= max_iter:
                 break
             t0 = time.perf_counter()
-            grad = 2.0 * (self.L @ V - self._b).ravel()  # set by assemble
-            Hg = self.hessian(Q, S, activation, mu=mu)
+            grad = 2.0 * (self.L @ V - self._b)  # set by assemble
+            grad[self.pin] = 0.0
+            direction = directions(Q, S, grad, res)
             self.timings["newton"] = self.timings.get("newton", 0.0) + time.perf_counter() - t0
             for _ in range(20):
                 t0 = time.perf_counter()
-                step = np.zeros(3 * n)
-                try:
-                    step[fdof] = _factorise(Hg[fdof][:, fdof]).solve(-grad[fdof])
-                except RuntimeError:  # numerically singular: damp more
-                    mu *= 8.0
-                    Hg = self.hessian(Q, S, activation, mu=mu)
-                    continue
-                finally:
-                    self.timings["newton"] += time.perf_counter() - t0
-                Vt = V + step.reshape(n, 3)
-                Qt, Et = self.orient(Vt, activation)
-                if Et < E:
-                    V, Q, E, S = Vt, Qt, Et, self._last_S
-                    mu = max(mu / 4.0, 1e-6)
-                    moved = float(np.abs(step).max() / scale)
+                step = direction(mu)
+                self.timings["newton"] += time.perf_counter() - t0
+                taken = None
+                if step is not None and np.any(step):
+                    for alpha in alphas:
+                        Vt = V + alpha * step
+                        Qt, Et = self.orient(Vt, activation)
+                        # a full step may raise the energy by its round-off: near the
+                        # solution every step changes it by less than that
+                        if Et < E or (alpha == 1.0 and Et <= E * (1.0 + ENERGY_ROUNDOFF)):
+                            V, Q, E, S, taken = Vt, Qt, Et, self._last_S, alpha
+                            break
+                if taken is not None:
+                    moved = float(np.abs(taken * step).max() / scale)
+                    error = moved
+                    if taken == 1.0:
+                        theta = moved / prev  # 0 after a first full step: no estimate yet
+                        if 0.0 < theta < 1.0:
+                            error = min(moved, moved * theta / (1.0 - theta))
+                        prev = moved
+                    else:
+                        prev = np.inf
+                    mu = max(mu / 4.0, MU_MIN) if taken == 1.0 else 2.0 * mu
                     break
                 mu *= 8.0
-                Hg = self.hessian(Q, S, activation, mu=mu)
             else:  # no descent even with heavy damping: take the plain step
                 V = G
                 Q, E = self.orient(V, activation)
                 S = self._last_S
-                moved = res
+                error, prev = res, np.inf
+            log.debug("newton %d: residual %.3e, error estimate %.3e, energy %.6e, mu %.1e",
+                      it, res, error, E, mu)
             energies.append(E)
         return G, res <= tol, it, res, energies + [self.orient(G, activation)[1]]
+
+    def _factorised_directions(self, activation):
+        """Newton steps of ``method="newton"``: the 3n x 3n Hessian factorised, per ``mu``."""
+        fdof = (3 * self.free[:, None] + np.arange(3)).ravel()
+        n = self.n
+
+        def directions(Q, S, grad, res):
+            def step(mu):
+                H = self.hessian(Q, S, activation, mu=mu)[fdof][:, fdof]
+                out = np.zeros(3 * n)
+                try:
+                    out[fdof] = _factorise(H).solve(-grad.ravel()[fdof])
+                except RuntimeError:  # numerically singular: damp more
+                    return None
+                return out.reshape(n, 3)
+            return step
+        return directions
 
     def hessian(self, Q, S, activation=1.0, mu=0.0):
         """Positive semi-definite Hessian of the rotation-reduced energy, plus ``mu`` times ``2 L``.
@@ -392,7 +432,7 @@ class Solver:
         m = self.cells.shape[0]
         if getattr(self, "_L3", None) is None:
             self._L3 = sp.kron(self.L, sp.eye(3), format="csr")
-        J = sp.csr_matrix((RG.ravel(), self._G_index), shape=(3 * m, 3 * self.n))
+        J, _ = self._jacobian(RG)
         return (2.0 * (1.0 + mu)) * self._L3 - 2.0 * (J.T @ J)
 
     def _hessian_setup(self, activation):
@@ -414,8 +454,23 @@ class Solver:
                                (m, 8, 3, 3))
         cols = np.broadcast_to(3 * self.cells[:, :, None, None] + np.arange(3)[None, None, None, :],
                                (m, 8, 3, 3))
-        self._G_index = (rows.ravel(), cols.ravel())
+        # the sparsity of J (3m x 3n) and of its transpose, fixed: each step only fills values
+        # (the data of J0 and Jt0 are 1 + the flat index into the blocks)
+        shape = (3 * m, 3 * self.n)
+        order = np.lexsort((cols.ravel(), rows.ravel()))
+        J0 = sp.csr_matrix((order + 1.0, cols.ravel()[order], np.arange(0, 72 * m + 1, 24)), shape=shape)
+        Jt0 = J0.T.tocsr()
+        self._J_pattern = (order, J0.indices, J0.indptr, shape)
+        self._Jt_pattern = (Jt0.data.astype(np.int64) - 1, Jt0.indices, Jt0.indptr, shape[::-1])
         self._hess_key = float(activation)
+
+    def _jacobian(self, RG):
+        """``J`` (3m x 3n, rows ``3 i + a``) and ``J^T``, both CSR, from the blocks ``RG``."""
+        values = RG.ravel()
+        order, indices, indptr, shape = self._J_pattern
+        J = sp.csr_matrix((values[order], indices, indptr), shape=shape)
+        order, indices, indptr, shape = self._Jt_pattern
+        return J, sp.csr_matrix((values[order], indices, indptr), shape=shape)
 
     def _hessian_blocks(self, Q, S, activation=1.0, floor=1.0):
         """``root^T G_k`` of every cell, ``(m, 8, 3, 3)``: the Hessian is ``2 (L (x) I3 - J^T J)``.
@@ -468,9 +523,6 @@ class Solver:
         Zf = self._Z[self.free]
         self._Lc3 = sp.kron(Zf.T @ self.L_ff @ Zf, sp.eye(3), format="csc")
         self._Z3 = sp.kron(self._Z, sp.eye(3), format="csr")
-        m = self.cells.shape[0]
-        self._scatter = sp.csr_matrix((np.ones(8 * m), (self.cells.ravel(), np.arange(8 * m))),
-                                      shape=(self.n, 8 * m))
         return self._Z
 
     def _newton_operator(self, RG, mu):
@@ -486,8 +538,7 @@ class Solver:
         """
         m = self.cells.shape[0]
         Z = self._coarse_space()
-        RGt = np.ascontiguousarray(RG.transpose(0, 2, 1, 3).reshape(m, 3, 24))
-        J = sp.csr_matrix((RG.ravel(), self._G_index), shape=(3 * m, 3 * self.n))
+        J, Jt = self._jacobian(RG)
         JZ = (J @ self._Z3).tocsc()
         Hc = (2.0 * (1.0 + max(mu, 1e-6))) * self._Lc3 - 2.0 * (JZ.T @ JZ)
         try:
@@ -495,13 +546,10 @@ class Solver:
         except RuntimeError:  # SuperLU: exactly singular
             return None
         pin = self.pin
-        cells = self.cells
         scale = 2.0 * (1.0 + mu)
 
         def apply_H(v):
-            Jv = np.matmul(RGt, v[cells].reshape(m, 24, 1))
-            JtJv = np.matmul(RGt.transpose(0, 2, 1), Jv).reshape(8 * m, 3)
-            out = scale * (self.L @ v) - 2.0 * (self._scatter @ JtJv)
+            out = scale * (self.L @ v) - 2.0 * (Jt @ (J @ v.ravel())).reshape(-1, 3)
             out[pin] = 0.0
             return out
 
@@ -549,68 +597,33 @@ class Solver:
             rz = rz_new
         return x, max_iter
 
-    def _solve_newton_cg(self, V0, activation, tol, max_iter, floor=0.5, cg_rtol=None, cg_max=200):
-        """Damped Newton whose steps are solved by preconditioned CG, with no 3n x 3n factorisation.
+    def _cg_directions(self, activation, floor=0.5, cg_rtol=None, cg_max=200):
+        """Newton steps of ``method="newton-cg"``: preconditioned CG, no 3n x 3n factorisation.
 
         The Hessian is :meth:`hessian`'s with the per-cell clamp lowered to ``floor``
         (nearer the true Hessian, hence fewer Newton steps; CG stops at negative curvature
         and the energy test rejects a bad step). Each CG iteration costs one solve with
-        the factorised n x n system for three right-hand sides, one Hessian product and
-        one solve with the coarse matrix, which is factorised once per Newton step. CG
-        stops at a relative (preconditioned) residual ``cg_rtol``, by default
-        ``sqrt(residual)`` clipped to [1e-3, 0.1]: loose far from the solution, tight near it.
+        the factorised n x n system for three right-hand sides, Hessian products and
+        solves with the coarse matrix, which is factorised once per step. CG stops at a
+        relative (preconditioned) residual ``cg_rtol``, by default the square root of the
+        plain step's residual clipped to [1e-3, 0.1]: loose far from the solution, tight near it.
         """
-        V = np.array(V0, float)
-        Vp = V[self.pin].copy()
-        scale = self.design.h
-        Q, E = self.orient(V, activation)
-        S = self._last_S
-        energies = [E]
-        mu = 1e-3
-        it = 0
         self.cg_iterations = 0
-        moved = np.inf  # largest vertex move of the last Newton step, in units of h
-        while True:
-            G = self.assemble(Q, Vp, activation)  # the plain step from V
-            it += 1
-            res = float(np.abs(G - V).max() / scale)
-            # as in _solve_newton: the plain step underestimates the error of bending shapes
-            if (res <= tol and moved <= STEP_TOL_FACTOR * tol) or it >= max_iter:
-                break
-            t0 = time.perf_counter()
-            grad = 2.0 * (self.L @ V - self._b)  # set by assemble
-            grad[self.pin] = 0.0
+
+        def directions(Q, S, grad, res):
             RG = self._hessian_blocks(Q, S, activation, floor=floor)
-            self.timings["newton"] = self.timings.get("newton", 0.0) + time.perf_counter() - t0
-            for _ in range(20):
-                t0 = time.perf_counter()
+            rtol = cg_rtol if cg_rtol is not None else min(0.1, max(1e-3, np.sqrt(res)))
+
+            def step(mu):
                 ops = self._newton_operator(RG, mu)
-                rtol = cg_rtol if cg_rtol is not None else min(0.1, max(1e-3, np.sqrt(res)))
-                step, k = (None, 0) if ops is None else self._pcg(*ops, -grad, rtol, cg_max)
+                if ops is None:
+                    return None
+                x, k = self._pcg(*ops, -grad, rtol, cg_max)
                 self.cg_iterations += k
-                self.timings["newton"] += time.perf_counter() - t0
-                accepted = False
-                if step is not None and np.any(step):
-                    # the full step, then two shorter ones along it before damping the model
-                    for alpha in (1.0, 0.5, 0.25):
-                        Vt = V + alpha * step
-                        Qt, Et = self.orient(Vt, activation)
-                        if Et < E:
-                            V, Q, E, S = Vt, Qt, Et, self._last_S
-                            mu = max(mu / 4.0, MU_MIN) if alpha == 1.0 else 2.0 * mu
-                            moved = float(np.abs(alpha * step).max() / scale)
-                            accepted = True
-                            break
-                if accepted:
-                    break
-                mu *= 8.0
-            else:  # no descent even with heavy damping: take the plain step
-                V = G
-                Q, E = self.orient(V, activation)
-                S = self._last_S
-                moved = res
-            energies.append(E)
-        return G, res <= tol, it, res, energies + [self.orient(G, activation)[1]]
+                log.debug("CG: %d iterations to %.1e", k, rtol)
+                return x
+            return step
+        return directions
 
     # -- starting shapes -----------------------------------------------------------------
     def linearised_start(self, V, activation=1.0):
@@ -705,9 +718,10 @@ class Solver:
         Returns ``(V, converged, iterations, residual, energies)``.
         """
         if method == "newton":
-            return self._solve_newton(V0, activation, tol, max_iter)
+            return self._solve_newton(V0, activation, tol, max_iter, self._factorised_directions(activation))
         if method == "newton-cg":
-            return self._solve_newton_cg(V0, activation, tol, max_iter)
+            return self._solve_newton(V0, activation, tol, max_iter, self._cg_directions(activation),
+                                      alphas=(1.0, 0.5, 0.25))
         V = np.array(V0, float)
         Vp = V[self.pin].copy()
         scale = self.design.h
@@ -836,12 +850,38 @@ AUTO_NEWTON_CELLS = 64
 DIRECT_START_CELLS = 2000
 
 
+#: ``init="auto"`` starts designs above this many cells from a coarsened copy.
+MULTILEVEL_CELLS = 20_000
+#: Tolerance of the coarse levels of ``init="multilevel"`` (their shape is only a start).
+MULTILEVEL_TOL = 1e-3
+INITS = ("auto", "linear", "multilevel", "flat")
+
+
+def _multilevel_start(design, activation, timings):
+    """Start for ``design``: the solved shape of its 2 x 2 coarsening, interpolated."""
+    from .multilevel import coarsen
+
+    t0 = time.perf_counter()
+    coarse, prolong = coarsen(design)
+    solver = Solver(coarse)
+    if coarse.n_cells > MULTILEVEL_CELLS:
+        V = _multilevel_start(coarse, activation, solver.timings)
+    else:
+        V = solver.linearised_start(coarse.mesh.points.copy(), activation)
+    V, ok, it, res, _ = solver.solve(V, activation, method=auto_method(coarse), tol=MULTILEVEL_TOL,
+                                     max_iter=50)
+    log.debug("multilevel: %d cells, %d iterations, residual %.2e, %.2f s", coarse.n_cells, it, res,
+              time.perf_counter() - t0)
+    timings["start"] = timings.get("start", 0.0) + time.perf_counter() - t0
+    return prolong @ V
+
+
 def auto_method(design):
     """The method ``"auto"`` picks for ``design``: ``"newton"`` or ``"newton-cg"``."""
     return "newton" if design.n_cells <= AUTO_NEWTON_CELLS else "newton-cg"
 
 
-def simulate(design, *, method="auto", init="linear", steps=1, tol=1e-7, max_iter=None,
+def simulate(design, *, method="auto", init="auto", steps=1, tol=1e-7, max_iter=None,
              history=6, seed=0):
     """Simulate the heat-activated shape change of a design.
 
@@ -858,11 +898,16 @@ def simulate(design, *, method="auto", init="linear", steps=1, tol=1e-7, max_ite
         ``"newton"`` up to :data:`AUTO_NEWTON_CELLS` cells, else ``"newton-cg"``. All stop
         at a fixed point of the same map, and the residual is always that of the paper's
         plain step.
-    init : {"linear", "flat"} or (n, 3) float array [mm]
-        Starting shape of the first frame: the small-rotation solution (default), the
+    init : {"auto", "linear", "multilevel", "flat"} or (n, 3) float array [mm]
+        Starting shape of the first frame: the small-rotation solution (``"linear"``),
+        the solution of the design coarsened 2 x 2 in the plane, interpolated
+        (``"multilevel"``, recursively down to :data:`MULTILEVEL_CELLS` cells, each
+        coarse level solved to ``MULTILEVEL_TOL``; see :mod:`gdfe.multilevel`), the
         flat print with a seeded perturbation of 1e-4 h out of plane (the flat print itself
         is a fixed point of the alternation, so it must be perturbed to bend at all), or
         given vertex positions (e.g. a shape a designer expects, or an earlier result).
+        ``"auto"`` (default) is ``"multilevel"`` above :data:`MULTILEVEL_CELLS` cells,
+        else ``"linear"``.
     steps : int
         Number of frames the contraction is ramped over (activation k/steps for
         k = 1..steps), each started from the last: the time series of the fold.
@@ -891,8 +936,11 @@ def simulate(design, *, method="auto", init="linear", steps=1, tol=1e-7, max_ite
     if method == "auto":
         method = auto_method(design)
     if isinstance(init, str):
-        if init not in ("linear", "flat"):
-            raise ValueError(f"init: expected 'linear', 'flat' or an (n, 3) array, got {init!r}")
+        if init not in INITS:
+            raise ValueError(f"init: expected 'auto', 'linear', 'multilevel', 'flat' or an (n, 3) array, "
+                             f"got {init!r}")
+        if init == "auto":
+            init = "multilevel" if design.n_cells > MULTILEVEL_CELLS else "linear"
     else:
         start = np.asarray(init, dtype=float)
         if start.shape != design.mesh.points.shape or not np.isfinite(start).all():
@@ -915,6 +963,8 @@ def simulate(design, *, method="auto", init="linear", steps=1, tol=1e-7, max_ite
         if k == 0:
             if init == "linear":
                 V = solver.linearised_start(V, a)
+            elif init == "multilevel":
+                V = _multilevel_start(design, a, solver.timings)
             elif init == "given":
                 V = start.copy()
             else:

@@ -175,7 +175,7 @@ def test_contraction_schedule_gives_a_monotone_fold():
 
 @pytest.mark.parametrize("kwargs, exc, match", [
     (dict(method="cg"), ValueError, "method: expected 'newton'"),
-    (dict(init="random"), ValueError, "init: expected 'linear', 'flat' or an"),
+    (dict(init="random"), ValueError, "init: expected 'auto', 'linear', 'multilevel', 'flat' or an"),
     (dict(init=np.zeros((3, 3))), ValueError, r"init: expected .* a finite array of shape"),
     (dict(steps=0), ValueError, "steps: expected an integer >= 1"),
     (dict(steps=1.5), TypeError, "steps: expected an integer"),
