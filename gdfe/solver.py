@@ -852,6 +852,8 @@ DIRECT_START_CELLS = 2000
 
 #: ``init="auto"`` starts designs above this many cells from a coarsened copy.
 MULTILEVEL_CELLS = 20_000
+#: ``init="multilevel"`` coarsens until a level has at most this many cells.
+MULTILEVEL_COARSEST = 2_000
 #: Tolerance of the coarse levels of ``init="multilevel"`` (their shape is only a start).
 MULTILEVEL_TOL = 1e-3
 INITS = ("auto", "linear", "multilevel", "flat")
@@ -864,7 +866,7 @@ def _multilevel_start(design, activation, timings):
     t0 = time.perf_counter()
     coarse, prolong = coarsen(design)
     solver = Solver(coarse)
-    if coarse.n_cells > MULTILEVEL_CELLS:
+    if coarse.n_cells > MULTILEVEL_COARSEST:
         V = _multilevel_start(coarse, activation, solver.timings)
     else:
         V = solver.linearised_start(coarse.mesh.points.copy(), activation)
@@ -901,7 +903,7 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=1e-7, max_iter=
     init : {"auto", "linear", "multilevel", "flat"} or (n, 3) float array [mm]
         Starting shape of the first frame: the small-rotation solution (``"linear"``),
         the solution of the design coarsened 2 x 2 in the plane, interpolated
-        (``"multilevel"``, recursively down to :data:`MULTILEVEL_CELLS` cells, each
+        (``"multilevel"``, recursively down to :data:`MULTILEVEL_COARSEST` cells, each
         coarse level solved to ``MULTILEVEL_TOL``; see :mod:`gdfe.multilevel`), the
         flat print with a seeded perturbation of 1e-4 h out of plane (the flat print itself
         is a fixed point of the alternation, so it must be perturbed to bend at all), or
