@@ -36,10 +36,8 @@ developable: it buckles along the stripes, and several buckled states lie within
 each other in energy. Most Newton iterations on the large sheets go into that choice.
 Sheets above ``gdfe.solver.MULTILEVEL_CELLS`` cells start from the solution of the design
 coarsened 2 x 2 (``init="multilevel"``); its coarse levels are timed in the total and
-shown as "start s". Measured on the 10^5 sheet (2 cores, CHOLMOD): from the linearised
-start 19 Newton iterations, ~120 s, energy 6.552702e-2; multilevel 10 iterations, ~67 s
-(12 s of it coarse levels), energy 6.552812e-2, a different buckled state (see the
-README's note on frustrated designs).
+shown as "start s". On the 10^5 sheet both starts reach the same buckled state (energy
+6.552702e-2); how other starts can end elsewhere is in the README ("Large designs and speed").
 
 Factorisation choice (``gdfe.solver.FACTOR_BACKENDS``): CHOLMOD when scikit-sparse is
 installed, else SuperLU. Measured on 2 cores: the 10^5 sheet's n x n matrix (2.0e5
