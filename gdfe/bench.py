@@ -657,8 +657,8 @@ def format_table(res):
             extra = f" (FEM hinge levels: {v['fem_value']:.2f})"
         if "projected_1e6" in v:
             pj = v["projected_1e6"]
-            extra += (f"; 10^6 cells not run, projected {pj['seconds']:.3g} s and "
-                      f"{pj['peak_rss_mib'] / 1024:.2g} GiB")
+            extra += (f"; 10^6 cells not run, extrapolated {pj['seconds']:.3g} s and "
+                      f"{pj['peak_rss_mib'] / 1024:.2g} GiB (an underestimate: a measured 10^6 run took over 78 min, see README)")
         note = f" [{v['note']}]" if v.get("note") and (v["met"] is None or "quick" in v["note"]) else ""
         lines.append(f"  {_verdict_word(v):>7}  {v['goal']}: {val}{extra}{note}")
     lines.append(f"\n({res['seconds']:.0f} s in all)")
