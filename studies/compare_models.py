@@ -33,7 +33,12 @@ import numpy as np
 
 import gdfe
 import reference_fem as rf
-from studies._common import finish, headline, study_main
+# FEM mesh levels of the runtime study, the same as the benchmark's: (size cap [mm], elements
+# per hinge length, layers per ply, z growth, junction element / size)
+from gdfe.bench import FEM_LEVELS
+from studies._common import finish, headline, main_of, pyplot
+# fold angles GDFE gave in the paper's Figure 6 [rad]
+from studies.fig06_angle_validation import PAPER_SIM as FIG6_PAPER_GDFE
 
 log = logging.getLogger(__name__)
 
@@ -42,8 +47,6 @@ NAME = "compare_models"
 H = 0.29
 FIG6_D = 0.33
 FIG6_LENGTHS = (1.0, 1.6, 2.6)
-#: Fold angles GDFE gave in the paper's Figure 6 [rad].
-FIG6_PAPER_GDFE = (1.04, 1.66, 2.70)
 WIDTH = 1.0
 PANEL = 2.0
 #: The freeform strip: (length [mm], passive coat) from left to right, coat thickness FREEFORM_D.
@@ -54,14 +57,6 @@ RUNTIME_HINGE = (1.6, FIG6_D)
 #: Angle accuracy [rad] at which the runtime headline compares the models.
 SPEED_TOL = 0.01
 
-#: FEM mesh levels of the runtime study: (size cap [mm], elements per hinge length, layers per
-#: ply, z growth, junction element / size).
-FEM_LEVELS = (
-    (0.5, 2, 2, 1.5, 1 / 4),
-    (0.35, 4, 2, 2.0, 1 / 8),
-    (0.25, 4, 3, 2.0, 1 / 8),
-    (0.125, 8, 4, 2.0, 1 / 16),
-)
 SETTINGS = {
     "coarse": {"fem": "coarse", "gdfe_cells": 8, "gdfe_levels": (4, 8, 16, 32),
                "fem_levels": (0, 1, 2), "repeats": 1, "fit_tol": 1e-3},
@@ -446,11 +441,7 @@ YMAX = 4.0
 
 def plot(result, out):
     """Write the angle, shape and runtime figures of a :func:`run` result into ``out``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     out = Path(out)
     rows = result["angles"]
     t1 = [r for r in rows if r["source"] == "table1"]
@@ -530,11 +521,8 @@ def plot(result, out):
     plt.close(fig)
 
 
-def main(argv=None):
-    """``python -m studies.compare_models [--out DIR] [--resolution R] [--json]``."""
-    import sys
-
-    return study_main(sys.modules[__name__], argv)
+#: ``python -m studies.compare_models [--out DIR] [--resolution R] [--json]``.
+main = main_of(__name__)
 
 
 def format_table(res):
