@@ -9,6 +9,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from studies._common import RESOLUTIONS
+from studies.calibration_models import MODELS as CALIBRATION_MODELS
+
 __all__ = ["STUDIES", "register"]
 
 #: Every study, in the order of the report.
@@ -25,9 +28,6 @@ STUDIES = {
     "blind-diagnosis": "studies.blind_diagnosis",
     "bench-scaling": "studies.bench_scaling",
 }
-
-RESOLUTIONS = ("coarse", "default", "fine")
-CALIBRATION_MODELS = ("eq1", "eq1-d1", "power")
 
 
 def register(sub):
@@ -71,7 +71,7 @@ def load(name):
 
 
 def _cmd_study(args):
-    from gdfe.cli import CLIError
+    from gdfe.cli import CLIError, emit
     from studies._common import run_and_print
 
     try:
@@ -81,8 +81,6 @@ def _cmd_study(args):
     out = args.out if args.out is not None else Path("out") / args.name
     if not hasattr(module, "NAME"):  # a study without the shared plumbing
         result = module.run(resolution=args.resolution, out=out)
-        from gdfe.cli import emit
-
         emit(result, args.json, f"{args.name}: wrote {out}")
         return 0
     return run_and_print(module, args.resolution, out, args.json)
@@ -103,30 +101,29 @@ def _cmd_report(args):
 
 
 def _cmd_calibrate(args):
+    import gdfe
     from gdfe.cli import emit
     from studies import calibration_models as cm
 
     if args.boot < 0:
         raise ValueError(f"--boot: expected a non-negative number of resamples, got {args.boot}")
+    tests = gdfe.load_folding_tests(args.data)
+    if args.d is not None:
+        if args.d <= 0:
+            raise ValueError(f"--d: expected a positive passive thickness in mm, got {args.d:g}")
+        h = float(tests.h.mean())
     models = CALIBRATION_MODELS if args.model == "all" else (args.model,)
-    fits = [cm.fit(args.data, m, n_boot=args.boot) for m in models]
     out = []
     text = []
-    for f in fits:
+    for m in models:
+        f = cm.fit(tests, m, n_boot=args.boot)
         d = f.as_dict()
         d.pop("residuals")
-        if args.d is not None:
-            if args.d <= 0:
-                raise ValueError(f"--d: expected a positive passive thickness in mm, got {args.d:g}")
-            import gdfe
-
-            tests = gdfe.load_folding_tests(args.data)
-            h = float(tests.h.mean())
-            d["R_at_d"] = {"d_mm": args.d, "h_mm": h, "R": float(f.ratio(args.d, h))}
-        out.append(d)
         block = cm.format_fit(f)
         if args.d is not None:
+            d["R_at_d"] = {"d_mm": args.d, "h_mm": h, "R": float(f.ratio(args.d, h))}
             block += f"\nR      {d['R_at_d']['R']:.4f} at d = {args.d:g} mm (Eq. 3 of this reading, h = {h:g} mm)"
+        out.append(d)
         text.append(block)
     emit(out[0] if len(out) == 1 else out, args.json, "\n\n".join(text))
     return 0
