@@ -20,17 +20,9 @@ import scipy.sparse as sp
 
 from .design import Design, Material
 from .mesh import sheet_mesh
+from .solver import face_contraction
 
 __all__ = ["coarsen"]
-
-
-def _face_shrink(design):
-    """Contraction ``1 - R`` of the top and of the bottom face of every cell."""
-    mat = design.material
-    s = 1.0 - design.R
-    top = np.where((mat == Material.CONTRACT_TOP) | (mat == Material.FREE_SHRINK), s, 0.0)
-    bottom = np.where((mat == Material.CONTRACT_BOTTOM) | (mat == Material.FREE_SHRINK), s, 0.0)
-    return top, bottom
 
 
 def coarsen(design):
@@ -60,7 +52,7 @@ def coarsen(design):
     k = mesh.cell_k
     I, J = i // 2, j // 2
     nI, nJ = int(I.max()) + 1, int(J.max()) + 1
-    top, bottom = _face_shrink(design)
+    top, bottom = face_contraction(design)
     # sums over the fine cells of each coarse column (layers kept apart)
     idx = (k * nJ + J) * nI + I
     size = nz * nI * nJ

@@ -36,14 +36,15 @@ from gdfe._validate import check_int, check_positive
 from gdfe.design import Design, Material
 
 __all__ = ["Result", "ConvergenceError", "simulate", "rest_shapes", "system_matrix", "energy",
-           "Solver", "METHODS", "auto_method", "factor_backend"]
+           "face_contraction", "Solver", "METHODS", "auto_method", "factor_backend"]
 
 log = logging.getLogger(__name__)
 
 #: Smallest damping of ``method="newton-cg"`` (times 2 L): it also keeps the rigid rotation
 #: about the pinned vertex, a null direction of the energy, out of the steps.
 MU_MIN = 1e-6
-#: A Newton solve also needs its last step below ``STEP_TOL_FACTOR * tol`` (units of h).
+#: A Newton solve also needs its estimated distance to the solution below
+#: ``STEP_TOL_FACTOR * tol`` (units of h); see :meth:`Solver._solve_newton`.
 STEP_TOL_FACTOR = 10.0
 #: Relative rise of the energy a full Newton step may cause and still be taken (round-off).
 ENERGY_ROUNDOFF = 1e-13
@@ -137,19 +138,30 @@ def rest_shapes(design, activation=1.0):
     mesh = design.mesh
     X = mesh.points[mesh.cells]  # (m, 8, 3)
     t = X[..., 2] / design.h  # height in the film, 0 (bottom) .. 1 (top)
-    mat = design.material[:, None]
-    shrink = activation * (1.0 - design.R)[:, None]  # (m, 1)
-    frac = np.zeros_like(t)
-    frac = np.where(mat == Material.CONTRACT_TOP, t, frac)
-    frac = np.where(mat == Material.CONTRACT_BOTTOM, 1.0 - t, frac)
-    frac = np.where(mat == Material.FREE_SHRINK, 1.0, frac)
-    sx = 1.0 - shrink * frac
-    sy = 1.0 - design.isotropy * shrink * frac
+    top, bottom = face_contraction(design)
+    # linear through the film, from the bottom face's contraction to the top face's
+    shrink = activation * (top[:, None] * t + bottom[:, None] * (1.0 - t))
+    sx = 1.0 - shrink
+    sy = 1.0 - design.isotropy * shrink
     c = X.mean(axis=1, keepdims=True)
     P = X - c
     P[..., 0] *= sx
     P[..., 1] *= sy
     return P - P.mean(axis=1, keepdims=True)
+
+
+def face_contraction(design):
+    """Contraction ``1 - R`` of the top and of the bottom face of every cell (0 where coated).
+
+    Returns
+    -------
+    top, bottom : (m,) float arrays
+    """
+    mat = design.material
+    s = 1.0 - design.R
+    top = np.where((mat == Material.CONTRACT_TOP) | (mat == Material.FREE_SHRINK), s, 0.0)
+    bottom = np.where((mat == Material.CONTRACT_BOTTOM) | (mat == Material.FREE_SHRINK), s, 0.0)
+    return top, bottom
 
 
 def system_matrix(design):
@@ -429,7 +441,6 @@ class Solver:
             Unknowns ordered vertex-major (``3 v + c``).
         """
         RG = self._hessian_blocks(Q, S, activation, floor=1.0)
-        m = self.cells.shape[0]
         if getattr(self, "_L3", None) is None:
             self._L3 = sp.kron(self.L, sp.eye(3), format="csr")
         J, _ = self._jacobian(RG)
@@ -440,7 +451,6 @@ class Solver:
         if getattr(self, "_hess_key", None) == float(activation):
             return
         P, _ = self._rest(activation)
-        m = self.cells.shape[0]
         C = np.einsum("mki,mkj->mij", P, P)
         M0 = np.trace(C, axis1=1, axis2=2)[:, None, None] * np.eye(3) - C
         lam0, W0 = np.linalg.eigh(M0)
@@ -450,22 +460,24 @@ class Solver:
         Kx[..., 1, 0], Kx[..., 1, 2] = P[..., 2], -P[..., 0]
         Kx[..., 2, 0], Kx[..., 2, 1] = -P[..., 1], P[..., 0]
         self._Kx = Kx
-        rows = np.broadcast_to((3 * np.arange(m))[:, None, None, None] + np.arange(3)[None, None, :, None],
-                               (m, 8, 3, 3))
-        cols = np.broadcast_to(3 * self.cells[:, :, None, None] + np.arange(3)[None, None, None, :],
-                               (m, 8, 3, 3))
-        # the sparsity of J (3m x 3n) and of its transpose, fixed: each step only fills values
-        # (the data of J0 and Jt0 are 1 + the flat index into the blocks)
-        shape = (3 * m, 3 * self.n)
-        order = np.lexsort((cols.ravel(), rows.ravel()))
-        J0 = sp.csr_matrix((order + 1.0, cols.ravel()[order], np.arange(0, 72 * m + 1, 24)), shape=shape)
-        Jt0 = J0.T.tocsr()
-        self._J_pattern = (order, J0.indices, J0.indptr, shape)
-        self._Jt_pattern = (Jt0.data.astype(np.int64) - 1, Jt0.indices, Jt0.indptr, shape[::-1])
         self._hess_key = float(activation)
 
     def _jacobian(self, RG):
         """``J`` (3m x 3n, rows ``3 i + a``) and ``J^T``, both CSR, from the blocks ``RG``."""
+        if getattr(self, "_J_pattern", None) is None:
+            # the sparsity of J and of its transpose depends on the mesh only: each step
+            # fills values (the data of J0 and Jt0 are 1 + the flat index into the blocks)
+            m = self.cells.shape[0]
+            rows = np.broadcast_to((3 * np.arange(m))[:, None, None, None] + np.arange(3)[None, None, :, None],
+                                   (m, 8, 3, 3))
+            cols = np.broadcast_to(3 * self.cells[:, :, None, None] + np.arange(3)[None, None, None, :],
+                                   (m, 8, 3, 3))
+            shape = (3 * m, 3 * self.n)
+            order = np.lexsort((cols.ravel(), rows.ravel()))
+            J0 = sp.csr_matrix((order + 1.0, cols.ravel()[order], np.arange(0, 72 * m + 1, 24)), shape=shape)
+            Jt0 = J0.T.tocsr()
+            self._J_pattern = (order, J0.indices, J0.indptr, shape)
+            self._Jt_pattern = (Jt0.data.astype(np.int64) - 1, Jt0.indices, Jt0.indptr, shape[::-1])
         values = RG.ravel()
         order, indices, indptr, shape = self._J_pattern
         J = sp.csr_matrix((values[order], indices, indptr), shape=shape)
@@ -536,11 +548,10 @@ class Solver:
         Returns ``(apply_H, apply_P)`` acting on ``(n, 3)`` arrays, or None when the
         coarse matrix is not positive definite.
         """
-        m = self.cells.shape[0]
         Z = self._coarse_space()
         J, Jt = self._jacobian(RG)
         JZ = (J @ self._Z3).tocsc()
-        Hc = (2.0 * (1.0 + max(mu, 1e-6))) * self._Lc3 - 2.0 * (JZ.T @ JZ)
+        Hc = (2.0 * (1.0 + max(mu, MU_MIN))) * self._Lc3 - 2.0 * (JZ.T @ JZ)
         try:
             fc = _factorise(Hc)
         except RuntimeError:  # SuperLU: exactly singular
@@ -704,7 +715,6 @@ class Solver:
         self.cg_iterations = getattr(self, "cg_iterations", 0) + k
         X = (V + step)[self.cells]
         X -= X.mean(axis=1, keepdims=True)
-        self._hessian_setup(activation)
         rhs = np.cross(P, X).sum(axis=1)  # sum_k p_k x x_k
         M0is = self._M0is
         omega = np.einsum("mij,mjk,mk->mi", M0is, M0is, rhs)
@@ -841,9 +851,8 @@ def _expmap(omega):
 #: Methods of :func:`simulate`.
 METHODS = ("newton", "newton-cg", "auto", "anderson", "plain")
 #: Largest design (cells) for which ``method="auto"`` factorises the full Hessian. Above
-#: it ``"newton-cg"`` is faster on every design measured by ``gdfe bench``: the Figure 6
-#: hinges (0.15 s against 0.32 s for L = 1 mm), the 10^3-cell mask sheet (0.47 s against
-#: 2.3 s) and, increasingly, larger ones (4 10^3 cells: 1.7 s against 23 s).
+#: it ``"newton-cg"`` is faster on every design ``gdfe bench`` times: the Figure 6 hinges
+#: of 84-384 cells take 0.061-0.105 s against 0.087-0.277 s (docs/bench/bench.txt).
 AUTO_NEWTON_CELLS = 64
 #: Largest design (cells) whose linearised start is one sparse factorisation of the joint
 #: system; larger ones eliminate the rotations and use preconditioned CG.
@@ -857,24 +866,22 @@ MULTILEVEL_COARSEST = 2_000
 #: Tolerance of the coarse levels of ``init="multilevel"`` (their shape is only a start).
 MULTILEVEL_TOL = 1e-3
 INITS = ("auto", "linear", "multilevel", "flat")
+_INIT_NAMES = ", ".join(map(repr, INITS))
 
 
-def _multilevel_start(design, activation, timings):
+def _multilevel_start(design, activation):
     """Start for ``design``: the solved shape of its 2 x 2 coarsening, interpolated."""
     from .multilevel import coarsen
 
-    t0 = time.perf_counter()
     coarse, prolong = coarsen(design)
     solver = Solver(coarse)
     if coarse.n_cells > MULTILEVEL_COARSEST:
-        V = _multilevel_start(coarse, activation, solver.timings)
+        V = _multilevel_start(coarse, activation)
     else:
         V = solver.linearised_start(coarse.mesh.points.copy(), activation)
-    V, ok, it, res, _ = solver.solve(V, activation, method=auto_method(coarse), tol=MULTILEVEL_TOL,
-                                     max_iter=50)
-    log.debug("multilevel: %d cells, %d iterations, residual %.2e, %.2f s", coarse.n_cells, it, res,
-              time.perf_counter() - t0)
-    timings["start"] = timings.get("start", 0.0) + time.perf_counter() - t0
+    V, _, it, res, _ = solver.solve(V, activation, method=auto_method(coarse), tol=MULTILEVEL_TOL,
+                                    max_iter=50)
+    log.debug("multilevel: %d cells, %d iterations, residual %.2e", coarse.n_cells, it, res)
     return prolong @ V
 
 
@@ -916,7 +923,7 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=1e-7, max_iter=
     tol : float
         Convergence tolerance on the fixed-point residual (largest vertex move of one
         plain iteration, in units of the film thickness h). The Newton methods also need
-        their last step below ``STEP_TOL_FACTOR * tol``.
+        their estimated distance to the solution below ``STEP_TOL_FACTOR * tol``.
     max_iter : int, optional
         Iteration limit per frame; default 200 for the Newton methods, 5000 otherwise.
     history : int
@@ -939,14 +946,13 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=1e-7, max_iter=
         method = auto_method(design)
     if isinstance(init, str):
         if init not in INITS:
-            raise ValueError(f"init: expected 'auto', 'linear', 'multilevel', 'flat' or an (n, 3) array, "
-                             f"got {init!r}")
+            raise ValueError(f"init: expected {_INIT_NAMES} or an (n, 3) array, got {init!r}")
         if init == "auto":
             init = "multilevel" if design.n_cells > MULTILEVEL_CELLS else "linear"
     else:
         start = np.asarray(init, dtype=float)
         if start.shape != design.mesh.points.shape or not np.isfinite(start).all():
-            raise ValueError(f"init: expected 'linear', 'flat' or a finite array of shape "
+            raise ValueError(f"init: expected {_INIT_NAMES} or a finite array of shape "
                              f"{design.mesh.points.shape}, got shape {start.shape}")
         init = "given"
     steps = check_int("steps", steps)
@@ -966,7 +972,9 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=1e-7, max_iter=
             if init == "linear":
                 V = solver.linearised_start(V, a)
             elif init == "multilevel":
-                V = _multilevel_start(design, a, solver.timings)
+                t_start = time.perf_counter()
+                V = _multilevel_start(design, a)
+                solver.timings["start"] = time.perf_counter() - t_start
             elif init == "given":
                 V = start.copy()
             else:
