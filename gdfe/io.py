@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["write_vtu", "write_series", "render_png", "write_json", "surface_faces"]
+__all__ = ["write_vtu", "write_series", "render_png", "write_json", "write_text", "surface_faces"]
 
 log = logging.getLogger(__name__)
 
@@ -80,9 +80,7 @@ def write_series(result, out_dir, name="shape"):
     pvd = "\n".join(['<?xml version="1.0"?>',
                      '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
                      "  <Collection>", *entries, "  </Collection>", "</VTKFile>", ""])
-    with _atomic(out_dir / f"{name}.pvd") as tmp:
-        tmp.write_text(pvd)
-    return out_dir / f"{name}.pvd"
+    return write_text(out_dir / f"{name}.pvd", pvd)
 
 
 def surface_faces(design):
@@ -172,10 +170,15 @@ def _render_matplotlib(points, faces, colours, path, title, window_size):
     plt.close(fig)
 
 
+def write_text(path, text):
+    """Write ``text`` to ``path`` (renamed into place when complete)."""
+    with _atomic(path) as tmp:
+        tmp.write_text(text)
+    return Path(path)
+
+
 def write_json(path, obj):
     """Write ``obj`` as indented JSON (numpy scalars and arrays converted)."""
     from gdfe.cli import _json_default
 
-    with _atomic(path) as tmp:
-        tmp.write_text(json.dumps(obj, indent=2, default=_json_default) + "\n")
-    return Path(path)
+    return write_text(path, json.dumps(obj, indent=2, default=_json_default) + "\n")

@@ -18,6 +18,8 @@ import time
 import traceback
 from pathlib import Path
 
+from gdfe.io import write_json, write_text
+
 __all__ = ["build_report", "software_versions"]
 
 log = logging.getLogger(__name__)
@@ -51,13 +53,14 @@ def _run_one(name, module_path, resolution, out):
                    traceback=traceback.format_exc(limit=4), seconds=time.perf_counter() - t0)
         return rec, None
     rec["seconds"] = time.perf_counter() - t0
-    heads = result.get("headlines", []) if isinstance(result, dict) else []
+    fields = result if isinstance(result, dict) else {}
+    heads = fields.get("headlines", [])
     rec["headlines"] = len(heads)
     rec["passed"] = sum(bool(h.get("passed")) for h in heads)
-    rec["converged"] = bool(result.get("converged", True)) if isinstance(result, dict) else True
+    rec["converged"] = bool(fields.get("converged", True))
     rec["status"] = "ok" if rec["passed"] == rec["headlines"] and rec["converged"] else "fail"
     pngs = sorted(p.name for p in (out / name).glob("*.png"))
-    main = result.get("files", {}).get("png") if isinstance(result, dict) else None
+    main = fields.get("files", {}).get("png")
     rec["figures"] = [main] if main in pngs else pngs
     rec["other_files"] = [p for p in pngs if p not in rec["figures"]]
     return rec, result
@@ -83,10 +86,10 @@ def build_report(out, resolution="default", names=None, progress=None):
         regression checks; skipped studies do not count against it), ``studies`` (one
         record per study), ``versions``.
     """
+    from studies._common import check_resolution
     from studies.cli import STUDIES
 
-    if resolution not in ("coarse", "default", "fine"):
-        raise ValueError(f"resolution: expected coarse, default or fine, got {resolution!r}")
+    check_resolution(resolution)
     names = list(STUDIES) if names is None else list(names)
     unknown = [n for n in names if n not in STUDIES]
     if unknown:
@@ -116,10 +119,7 @@ def build_report(out, resolution="default", names=None, progress=None):
         "studies": records,
         "ok": all(r["status"] in ("ok", "skipped") for r in records),
     }
-    index = out / "index.html"
-    index.write_text(_html(summary, results))
-    from gdfe.io import write_json
-
+    index = write_text(out / "index.html", _html(summary, results))
     write_json(out / "report.json", {**summary, "results": {
         k: _public(v) for k, v in results.items() if isinstance(v, dict)}})
     summary["index"] = str(index)
@@ -178,10 +178,11 @@ def _html(summary, results):
                      f"<td>{hl}</td><td>{r.get('seconds', 0):.1f}</td><td>{figs}</td></tr>")
     parts.append("</table>")
     # per study
+    results = {k: v if isinstance(v, dict) else {} for k, v in results.items()}
     for r in summary["studies"]:
-        res = results.get(r["name"])
-        title = res.get("title", "") if isinstance(res, dict) else ""
-        fig = res.get("figure", "") if isinstance(res, dict) else ""
+        res = results.get(r["name"], {})
+        title = res.get("title", "")
+        fig = res.get("figure", "")
         parts.append(f'<h2 id="{e(r["name"])}">{e(r["name"])}: {e(str(fig))} {e(str(title))}</h2>')
         if r["status"] in ("skipped", "error"):
             parts.append(f'<p>{_status(r["status"])}: {e(r.get("note", ""))}</p>')
@@ -212,20 +213,20 @@ def _html(summary, results):
             parts.append("</table>")
         if not r.get("converged", True):
             parts.append('<p class="fail">A simulation of this study did not converge.</p>')
-        s = res.get("summary", {}) if isinstance(res, dict) else {}
+        s = res.get("summary", {})
         if s:
             parts.append("<p>" + "<br>".join(f"<b>{e(k)}</b>: {e(str(v))}" for k, v in s.items() if v) + "</p>")
     # closing note
     parts.append("<h2>Closing note</h2><table><tr><th>figure</th><th>paper</th><th>ours</th><th>verdict</th>"
                  "<th>discrepancy: measured cause or open question</th></tr>")
     for r in summary["studies"]:
-        res = results.get(r["name"])
-        s = res.get("summary", {}) if isinstance(res, dict) else {}
+        res = results.get(r["name"], {})
+        s = res.get("summary", {})
         if r["status"] in ("skipped", "error"):
             parts.append(f"<tr><td>{e(r['name'])}</td><td colspan=4>{_status(r['status'])}: "
                          f"{e(r.get('note', ''))}</td></tr>")
             continue
-        fig = res.get("figure", r["name"]) if isinstance(res, dict) else r["name"]
+        fig = res.get("figure", r["name"])
         parts.append(f"<tr><td>{e(str(fig))}</td><td>{e(str(s.get('paper', '')))}</td>"
                      f"<td>{e(str(s.get('ours', '')))}</td><td>{e(str(s.get('verdict', '')))}</td>"
                      f"<td>{e(str(s.get('discrepancy', '')))}</td></tr>")
