@@ -140,14 +140,15 @@ def grid_design(material2d, R, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0, film=
         Named in-plane regions.
     """
     material2d = np.asarray(material2d)
-    dx, dy = np.broadcast_to(np.asarray(pixel, float), (2,))
-    if isotropy > 0 and max(dx, dy) > 1.5 * min(dx, dy):
-        # measured: a tube's fold per hinge falls from 0.755 to 0.255 rad as the cells'
-        # aspect goes from 1 to 5.4 (isotropic shrink); square cells converge under refinement
-        log.warning("cells of %g x %g mm with in-plane isotropic shrink: elongated cells stiffen "
-                    "the fold; use square cells (aspect <= 1.5)", dx, dy)
     if material2d.ndim != 2:
         raise ValueError(f"material2d: expected a 2-D grid, got shape {material2d.shape}")
+    dx, dy = np.broadcast_to(np.asarray(pixel, float), (2,))
+    if isotropy > 0 and max(dx, dy) > 1.5 * min(dx, dy):
+        # measured by studies/fig07_crease_fold.py (fine tube meshes): a tube's fold per hinge
+        # falls from 0.755 to 0.255 rad as the cells' aspect goes from 1 to 5.4 (isotropic
+        # shrink); square cells converge under refinement
+        log.warning("cells of %g x %g mm with in-plane isotropic shrink: elongated cells stiffen "
+                    "the fold; use square cells (aspect <= 1.5)", dx, dy)
     keep = np.ones(material2d.shape, bool) if film is None else np.asarray(film, bool)
     if keep.shape != material2d.shape:
         raise ValueError(f"film: expected shape {material2d.shape}, got {keep.shape}")
@@ -210,7 +211,7 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
     R = check_ratio("R", R)
     if face not in ("top", "bottom"):
         raise ValueError(f"face: expected 'top' or 'bottom', got {face!r}")
-    if cell_size is None:  # 16 cells across the hinge, and cells no longer than twice their width
+    if cell_size is None:
         cell_size = min(length / 16.0, width / 2.0)
     cell_size = check_positive("cell_size", cell_size)
     nh = max(1, int(round(length / cell_size)))
