@@ -64,6 +64,12 @@ class ModelFit:
     p_ci: tuple
     residuals: np.ndarray
 
+    @classmethod
+    def reading(cls, model, K, p):
+        """The reading ``model`` with given ``K`` and ``p`` and no fit behind it (fit fields empty)."""
+        return cls(model=model, K=K, p=p, r2=np.nan, r2_uncentered=np.nan, rmse=np.nan, n=0,
+                   K_ci=(K, K), p_ci=(p, p), residuals=np.zeros(0))
+
     def alpha(self, L, d, h):
         """Fold angle [rad] of this reading."""
         return self.slope(d, h) * np.asarray(L, float)
@@ -103,7 +109,8 @@ def regressor(model, L, d, h):
     raise ValueError(f"model: {model!r} has no single regressor; expected 'eq1' or 'eq1-d1'")
 
 
-def _quality(y, fitted):
+def quality(y, fitted):
+    """R² about the mean, R² about zero, rmse and residuals of ``fitted`` against ``y``."""
     res = y - fitted
     ss = float(res @ res)
     return (1.0 - ss / float(((y - y.mean()) ** 2).sum()), 1.0 - ss / float(y @ y),
@@ -171,7 +178,7 @@ def fit(tests, model="eq1", n_boot=2000, seed=0):
         Kb = (xb * yb).sum(1) / (xb * xb).sum(1)
         K_ci = tuple(np.percentile(Kb, [2.5, 97.5]).tolist()) if n_boot else (K, K)
         p_ci = (p, p)
-    r2, r2u, rmse, res = _quality(y, fitted)
+    r2, r2u, rmse, res = quality(y, fitted)
     return ModelFit(model=model, K=float(K), p=float(p), r2=r2, r2_uncentered=r2u, rmse=rmse, n=int(n),
                     K_ci=K_ci, p_ci=p_ci, residuals=res)
 

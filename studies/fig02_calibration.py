@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from studies._common import check_resolution, finish, headline, main_of, pyplot
+from studies.fig06_angle_validation import PAPER_SIM
 
 NAME = "fig02"
 PAPER_K = 0.3706
@@ -41,10 +42,8 @@ def run(resolution="default", out=None, data=None):
     # the paper's reading: K = 0.3706 applied to the printed regressor
     x3 = cm.regressor("eq1", L, d, h)
     pred_paper = PAPER_K * x3
-    res_paper = y - pred_paper
-    ss = float(res_paper @ res_paper)
-    paper_on_data = {"K": PAPER_K, "r2": 1 - ss / float(((y - y.mean()) ** 2).sum()),
-                     "rmse": float(np.sqrt(ss / y.size)), "alpha_pred": pred_paper.tolist(),
+    r2_paper, _, rmse_paper, _ = cm.quality(y, pred_paper)
+    paper_on_data = {"K": PAPER_K, "r2": r2_paper, "rmse": rmse_paper, "alpha_pred": pred_paper.tolist(),
                      "max_alpha_pred": float(pred_paper.max())}
     cal = gdfe.Calibration(K=PAPER_K, h=H)
     d_min = cal.d_min()
@@ -56,9 +55,8 @@ def run(resolution="default", out=None, data=None):
     for m in ("eq1", "eq1-d1"):
         x = cm.regressor(m, L, d, h)
         slope, icpt = np.polyfit(x, y, 1)
-        r = y - (slope * x + icpt)
         intercept[m] = {"slope": float(slope), "intercept": float(icpt),
-                        "r2": float(1 - (r @ r) / ((y - y.mean()) ** 2).sum())}
+                        "r2": cm.quality(y, slope * x + icpt)[0]}
 
     # Eq. 2 applied to every test: the contraction ratio each test implies
     R_tests = 1.0 - y * h / L
@@ -67,15 +65,13 @@ def run(resolution="default", out=None, data=None):
     rows = [("paper (K = 0.3706, d^3)", "eq1", PAPER_K, 1.5)] + [
         (f"refit {m}", m, fits[m].K, fits[m].p) for m in cm.MODELS]
     for label, m, K, p in rows:
-        f = cm.ModelFit(model=m, K=K, p=p, r2=np.nan, r2_uncentered=np.nan, rmse=np.nan, n=0,
-                        K_ci=(K, K), p_ci=(p, p), residuals=np.zeros(0))
+        f = cm.ModelFit.reading(m, K, p)
         R = float(f.ratio(D_FIG6, H))
         readings.append({"reading": label, "model": m, "K": K, "p": p, "R_d033": R,
                          "fig6_alpha": [float((1 - R) * Lf / H) for Lf in FIG6_L],
                          "d_min_mm": float(f.d_min(H)),
                          "tests_with_R_le_0": int((f.ratio(d, h) <= 0).sum())})
     near = np.abs(d - D_FIG6) <= 0.035
-    fig6_paper_sim = [1.04, 1.66, 2.70]
 
     e1, e1d = fits["eq1"], fits["eq1-d1"]
     hl = [
@@ -130,7 +126,7 @@ def run(resolution="default", out=None, data=None):
         "readings": readings,
         "R_from_each_test": R_tests.tolist(),
         "R_tests_near_d033": {"d_mm": d[near].tolist(), "R": R_tests[near].tolist()},
-        "fig6_paper_simulated": fig6_paper_sim,
+        "fig6_paper_simulated": list(PAPER_SIM),
     }
     return finish(result, out, plot)
 
@@ -180,8 +176,7 @@ def plot(result, out):
     a = ax[1, 1]
     ds = np.linspace(0.08, 0.55, 300)
     for r in result["readings"]:
-        f = cm.ModelFit(model=r["model"], K=r["K"], p=r["p"], r2=0, r2_uncentered=0, rmse=0, n=0,
-                        K_ci=(0, 0), p_ci=(0, 0), residuals=np.zeros(0))
+        f = cm.ModelFit.reading(r["model"], r["K"], r["p"])
         a.plot(ds, f.ratio(ds, H), label=f"{r['reading']}: R(0.33) = {r['R_d033']:.3f}")
     a.scatter(d, result["R_from_each_test"], c="k", s=14, zorder=3, label="each test by Eq. 2: 1 − αh/L")
     a.axvline(D_FIG6, color="0.5", ls=":")
