@@ -40,12 +40,15 @@ def test_fig02_calibration(tmp_path):
     assert abs(f3["K"] - 0.3706) > 0.01 * 0.3706 and f3["K"] == pytest.approx(0.0608, abs=5e-4)
     assert abs(f3["r2"] - 0.80) > 0.02 and f3["r2"] == pytest.approx(0.576, abs=0.002)
     assert r["core_fit_eq1"]["K"] == pytest.approx(f3["K"], rel=1e-12)
-    # Eq. 3 readings at d = 0.33: 0.6947 (paper's K, "R = 0.7"), 0.95 (refit d^3)
+    # Eq. 3 readings at d = 0.33, R = 1 - K (h/d)^1.5 with h = 0.29: 1 - 0.3706 (0.29/0.33)^1.5 = 0.6947
+    # (paper's K, "R = 0.7"), 1 - 0.0608 (0.29/0.33)^1.5 = 0.950 (refit d^3)
     R = {x["reading"]: x["R_d033"] for x in r["readings"]}
     assert R["paper (K = 0.3706, d^3)"] == pytest.approx(0.6947, abs=1e-4)
     assert R["refit eq1"] == pytest.approx(0.95, abs=0.005)
+    # R = 0 at d = h K^(2/3) = 0.29 * 0.3706^(2/3) = 0.1496 mm
     assert r["eq3_paper"]["d_min_mm"] == pytest.approx(0.1496, abs=1e-4)
     assert len(r["eq3_paper"]["tests_R_le_0"]) == 4  # d = 0.11, 0.12, 0.13, 0.14 (0.15 gives R = 0.004)
+    # Eq. 1 at the thinnest test (L = 1.5, d = 0.11, h = 0.29): 0.3706 sqrt(0.29 / 0.11^3) 1.5 = 8.206 rad
     assert r["eq3_paper"]["thinnest_test"]["alpha_eq1"] == pytest.approx(8.2, abs=0.01)
 
 
@@ -115,9 +118,11 @@ def test_fig11_design_validation(tmp_path):
     _files(r, tmp_path)
     by = {(c["w_min"], c["R"]): c for c in r["cases"]}
     worst = by[(2.0, 0.8)]
-    # paper: a triangle at w_min = 2 mm, R = 0.8; nearest rounding gives round(4.55) = 5 corners
+    # paper: a triangle at w_min = 2 mm, R = 0.8; blocks = round(2 pi h / ((1 - R) w_min)) with h = 0.29:
+    # round(2 pi 0.29 / (0.2 * 2)) = round(4.55) = 5 corners
     assert worst["corners"] == 5 and worst["blocks"] == 5
-    assert by[(2.0, 0.7)]["corners"] == 3  # the triangle appears at R = 0.7 instead
+    # the triangle appears at R = 0.7 instead: round(2 pi 0.29 / (0.3 * 2)) = round(3.04) = 3
+    assert by[(2.0, 0.7)]["corners"] == 3
     # coarser printer, rougher circle at every R
     for R in r["R"]:
         assert by[(2.0, R)]["deviation_mm"] >= by[(0.5, R)]["deviation_mm"]
