@@ -75,7 +75,7 @@ def _tube(case):
 
     des = tube_design(case["R"], case["div"], case["ny"], case["isotropy"])
     res = inv.simulate_strip(des, max_iter=3000)
-    s, uv, _ = inv.strip_midline(res)
+    _, uv, _ = inv.strip_midline(res)
     prof = gdfe.curvature_profile(res)
     turn = prof["turn"]
     # turn of each hinge: the turn between the middles of the panels on either side of it

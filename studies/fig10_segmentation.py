@@ -66,7 +66,7 @@ def _simulate(case):
     pat = inv.strip_pattern(couples, h=H, R=case["R"], cell=case["cell"], rounding="carry", clamp=True)
     des = pat.design(width=WIDTH, ny=1, nz=1)
     res = inv.simulate_strip(des)
-    s, uv, _ = inv.strip_midline(res)
+    _, uv, _ = inv.strip_midline(res)
     cmp = inv.compare_curves(uv, case["points"])
     to_fit = inv.compare_curves(uv, fit.curve(ds=0.02))
     return {"penalty": case["penalty"], "n_couples_printed": len(couples), "clamped": int(pat.clamped.sum()),
@@ -92,9 +92,7 @@ def run(resolution="default", out=None):
         fits[pen] = fit
         curve = fit.curve(ds=0.02)
         cmp_free = inv.compare_curves(curve, P)  # best rigid motion
-        from gdfe.inverse import _closest_on_polyline
-
-        d_fixed = max(_closest_on_polyline(P, curve)[0].max(), _closest_on_polyline(curve, P)[0].max())
+        d_fixed = max(inv._closest_on_polyline(P, curve)[0].max(), inv._closest_on_polyline(curve, P)[0].max())
         levels.append({
             "penalty": pen, "m": fit.segmentation.m, "m_length_weighted": fitw.segmentation.m,
             "cost": fit.segmentation.cost, "eps": fit.segmentation.eps.tolist(),
