@@ -537,12 +537,10 @@ def _verdicts(result, hinge_verdict, cfg):
 
 
 def _write(result, out):
-    import json
-
-    from gdfe.cli import _json_default
+    from gdfe.io import write_json
 
     out.mkdir(parents=True, exist_ok=True)
-    (out / "bench.json").write_text(json.dumps(result, indent=2, default=_json_default))
+    write_json(out / "bench.json", result)
     try:
         plot(result, out / "bench_scaling.png")
     except ModuleNotFoundError as exc:  # matplotlib is optional
