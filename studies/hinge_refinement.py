@@ -60,11 +60,9 @@ def run(resolution="default", out=None):
 
 
 def plot(result, out):
-    import matplotlib
+    from studies._common import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     for ax, iso in zip(axes, (1.0, 0.0)):
         for row in (r for r in result["rows"] if r["isotropy"] == iso):
