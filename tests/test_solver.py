@@ -68,7 +68,9 @@ def test_hinge_converges_to_eq2_at_second_order():
 def test_bend_direction_follows_the_free_face():
     up = gdfe.simulate(gdfe.hinge(1.0, R=0.8, face="top")).check()
     down = gdfe.simulate(gdfe.hinge(1.0, R=0.8, face="bottom")).check()
-    assert gdfe.fold_angle(up) > 0.5
+    # Eq. 2, (1 - R) L / h = 0.690 rad; the Figure 6 hinges at this resolution lie within
+    # 0.0055 rad of it (README), so 0.015 (the refinement study's bound) is ample
+    assert gdfe.fold_angle(up) == pytest.approx(gdfe.angle_from_ratio(0.8, 1.0, up.design.h), abs=0.015)
     assert gdfe.fold_angle(down) == pytest.approx(-gdfe.fold_angle(up), abs=1e-6)
 
 
@@ -76,7 +78,7 @@ def test_R_equal_one_leaves_the_shape_unchanged():
     des = gdfe.hinge(1.0, R=1.0)
     res = gdfe.simulate(des).check()
     np.testing.assert_allclose(res.points, des.mesh.points, atol=1e-9)
-    assert res.energy < 1e-15  # round-off of |X|^2 + |P|^2 - 2 tr(Q^T S)
+    assert res.energy < 1e-15  # every cell at its rest shape: the misfits are round-off
 
 
 def test_rigid_motion_of_the_start_moves_the_result_rigidly():
