@@ -24,6 +24,14 @@ def _plt():
     return plt
 
 
+def _save(plt, fig, path):
+    """Lay out ``fig``, write it to ``path`` as PNG and close it."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def write_report(diag, out):
     """Write ``residual_map.png``, ``before_after.png``, ``effects.png``, ``summary.md`` and
     ``diagnosis.json`` of a :class:`~gdfe.diagnosis.Diagnosis` into directory ``out``.
@@ -69,10 +77,7 @@ def _residual_map(diag, path):
             ax.set_title(f"Spearman rho {w['spearman_rho']:+.2f} (p={w['spearman_p']:.2g})", fontsize=9)
         ax.set(xlabel=name + (" [rad]" if name == "predicted" else ""), ylabel="residual [rad]")
     axes[1].legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, path)
 
 
 def _before_after(diag, path):
@@ -88,10 +93,7 @@ def _before_after(diag, path):
         ax.set(xlim=(0, hi), ylim=(0, hi), xlabel="predicted angle [rad]", ylabel="measured angle [rad]",
                title=f"{'baseline' if f is b else f.name}\nRMSE {f.rmse:.3f}, held-out {ho:.3f} rad")
         ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, path)
 
 
 def _effects_bar(diag, path):
@@ -109,10 +111,7 @@ def _effects_bar(diag, path):
     ax.set_yticks(y, names, fontsize=8)
     ax.set_xlabel("angle error [rad]")
     ax.legend(fontsize=8, loc="lower right")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, path)
 
 
 def _summary_md(diag, files):
@@ -182,10 +181,8 @@ def write_shape_report(result, out):
     axes[1].set(ylabel="overall RMS, only this region corrected [mm]",
                 title="which region explains the gap (named: " + (", ".join(result.named) or "none") + ")")
     axes[1].legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out / "deviation.png", dpi=110)
-    plt.close(fig)
-    write_json(out / "shape_diagnosis.json", result.as_dict())
-    (out / "summary.md").write_text(result.text() + "\n")
-    return {"deviation": str(out / "deviation.png"), "json": str(out / "shape_diagnosis.json"),
-            "summary": str(out / "summary.md")}
+    files = {"deviation": _save(plt, fig, out / "deviation.png"),
+             "json": write_json(out / "shape_diagnosis.json", result.as_dict()),
+             "summary": out / "summary.md"}
+    files["summary"].write_text(result.text() + "\n")
+    return {k: str(v) for k, v in files.items()}
