@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from gdfe.cli import emit
+from gdfe.io import write_json
 
 __all__ = ["register"]
 
@@ -41,12 +42,6 @@ def register(sub):
     p.set_defaults(func=_cmd_diagnose_shape)
 
 
-def _write_json(path, obj):
-    from gdfe.io import write_json
-
-    return write_json(path, obj)
-
-
 def _cmd_diagnose(args):
     from gdfe.diagnosis.angles import diagnose
 
@@ -61,7 +56,7 @@ def _cmd_diagnose(args):
         obj["report"] = files
         text += f"\nreport: {files['summary']}"
     if args.json_out and args.json_out != "-":
-        _write_json(args.json_out, obj)
+        write_json(args.json_out, obj)
         text += f"\nwrote {args.json_out}"
     emit(obj, args.json_out == "-", text)
     return 0
@@ -79,7 +74,7 @@ def _cmd_diagnose_shape(args):
         obj["report"] = write_shape_report(res, args.report)
         text += f"\nreport: {obj['report']['summary']}"
     if args.json_out and args.json_out != "-":
-        _write_json(args.json_out, obj)
+        write_json(args.json_out, obj)
         text += f"\nwrote {args.json_out}"
     emit(obj, args.json_out == "-", text)
     return 0 if res.converged else 3

@@ -485,13 +485,12 @@ def _region_rms(design, cells, dev, owner):
 
 def _local_rms(comp, sim, cells, owner_all):
     """RMS deviation of a region aligned alone to its simulated counterpart."""
-    from gdfe.measure import rigid_align
+    from gdfe.measure import shape_distance
 
     design = comp.design
     if comp.method == "correspondence":
         vid = np.unique(design.mesh.cells[cells])
-        Q, t = rigid_align(comp.measured[vid], sim[vid])
-        return float(np.sqrt(np.mean(np.sum((comp.measured[vid] @ Q.T + t - sim[vid]) ** 2, axis=1))))
+        return shape_distance(sim[vid], comp.measured[vid])["rms"]
     pts = comp.measured[np.isin(owner_all, cells)]
     if len(pts) < 4:
         return float("nan")

@@ -67,7 +67,6 @@ def residual_analysis(residuals, inputs):
     n = r.size
     sq = r**2
     total = float(sq.sum()) or 1.0
-    rms_all = math.sqrt(float(sq.mean()))
     n_bins = 3 if n >= 9 else 2
     out = []
     for name, x in inputs.items():
@@ -84,7 +83,7 @@ def residual_analysis(residuals, inputs):
                          "mean": float(r[g].mean()), "rms": float(np.sqrt(sq[g].mean())),
                          "share": float(sq[g].sum() / total)})
         conc = max(b["share"] / (b["n"] / n) for b in bins)
-        noun, low, high = describe_input(name)
+        noun = describe_input(name)[0]
         trend = "rise" if sr > 0 else "fall"
         text = (f"residuals {trend} with {noun} (Spearman rho {sr:+.2f}, p = {sp:.2g}; "
                 f"slope {slope:+.3g} rad per unit)")
