@@ -81,14 +81,13 @@ class Diagnosis:
     check: dict | None = None
 
     def held_out_rmse(self, fit):
-        return fit.loo_rmse if self.held_out == "loo" else fit.logo_rmse
+        return fit.held_out_rmse(self.held_out)
 
     def shrink(self, fit, kind=None):
         """Fraction of the baseline's held-out RMSE that ``fit`` removes."""
         kind = kind or self.held_out
-        b = self.baseline.loo_rmse if kind == "loo" else self.baseline.logo_rmse
-        f = fit.loo_rmse if kind == "loo" else fit.logo_rmse
-        return float(1.0 - f / b) if b else 0.0
+        b = self.baseline.held_out_rmse(kind)
+        return float(1.0 - fit.held_out_rmse(kind) / b) if b else 0.0
 
     def as_dict(self) -> dict:
         """The JSON layout of ``gdfe diagnose --json``."""
@@ -247,8 +246,7 @@ def diagnose(tests, *, group=None, pairs=True, check=None, models=None):
         fits.append(evaluate(m, L, d, h, alpha, groups))
     kind = "logo" if groups is not None else "loo"
     best, cands = select([base] + fits, alpha, kind)
-    key = (lambda f: f.loo_rmse) if kind == "loo" else (lambda f: f.logo_rmse)
-    fits.sort(key=key)
+    fits.sort(key=lambda f: f.held_out_rmse(kind))
     inputs = {"L_mm": L, "d_mm": d, "h_mm": h, **numeric_columns(tests)}
     where, regime = residual_analysis(base.residuals, {**inputs, "predicted": base.predicted})
     where_b, regime_b = residual_analysis(best.residuals, {**inputs, "predicted": best.predicted})

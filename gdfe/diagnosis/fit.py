@@ -80,6 +80,10 @@ class ModelFit:
         """Held-out predictions of ``kind`` (``"loo"`` or ``"logo"``)."""
         return self.loo_predicted if kind == "loo" else self.logo_predicted
 
+    def held_out_rmse(self, kind="loo"):
+        """Held-out RMSE [rad] of ``kind`` (``"loo"`` or ``"logo"``)."""
+        return self.loo_rmse if kind == "loo" else self.logo_rmse
+
     def param_dict(self) -> dict:
         return {n: float(v) for n, v in zip(self.model.param_names, self.params)}
 
