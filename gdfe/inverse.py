@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import time
 
 import numpy as np
 
@@ -483,25 +482,18 @@ def bent_start(design):
 def simulate_strip(design, tol=1e-7, max_iter=400):
     """Simulate a strip design from :func:`bent_start` with the damped Newton solver.
 
-    Same energy, same stopping criterion and same fixed point as :func:`gdfe.simulate`;
-    only the starting shape differs (the flat print's linearised solution converges
-    slowly for strips that roll up by a full turn).
+    :func:`gdfe.simulate` with ``init=bent_start(design)``: same energy, same stopping
+    criterion and same fixed point; only the starting shape differs (the flat print's
+    linearised solution converges slowly for strips that roll up by a full turn).
 
     Returns
     -------
     gdfe.Result
         Check ``converged``.
     """
-    from gdfe.solver import Result, Solver
+    from gdfe.solver import simulate
 
-    t0 = time.perf_counter()
-    solver = Solver(design)
-    V0 = bent_start(design)
-    V, ok, it, res, E = solver.solve(V0, 1.0, method="newton", tol=tol, max_iter=max_iter)
-    return Result(design=design, points=V, converged=bool(ok), iterations=int(it), residual=float(res),
-                  energy=float(E[-1]), energy_history=np.asarray(E), seconds=time.perf_counter() - t0,
-                  frames=[design.mesh.points.copy(), V.copy()], activation=np.array([0.0, 1.0]),
-                  frame_iterations=[int(it)], method="newton", timings=dict(solver.timings))
+    return simulate(design, method="newton", init=bent_start(design), tol=tol, max_iter=max_iter)
 
 
 def strip_midline(result, design=None):
