@@ -172,12 +172,17 @@ def test_residual_analysis_skips_constant_inputs():
 
 
 # -- diagnose -----------------------------------------------------------------------------------
-def test_table1_diagnosis(t1_diag):
+def test_table1_diagnosis(t1, t1_diag):
     d = t1_diag.as_dict()
     assert set(d) >= {"baseline", "where", "residuals", "effects", "best"}
     b = d["baseline"]
     assert set(b) >= {"model", "params", "rmse", "loo_rmse"}
+    # the baseline is Eq. 1 refitted by least squares through the origin: K = 0.0608 and
+    # RMSE 0.464 rad on Table 1 (gdfe.Calibration.fit; studies/fig02_calibration.py)
+    ref = gdfe.Calibration.fit(t1, n_boot=10)
     assert b["params"]["K"] == pytest.approx(0.0608, abs=5e-5)
+    assert b["params"]["K"] == pytest.approx(ref.K, rel=1e-9)
+    assert b["rmse"] == pytest.approx(ref.rmse, rel=1e-9)
     assert b["loo_rmse"] > b["rmse"] > 0.4
     effects = d["effects"]
     assert {"name", "params", "rmse", "loo_rmse", "shrink", "aic"} <= set(effects[0])
