@@ -15,14 +15,6 @@ def positive(name: str, value) -> float:
     return x
 
 
-def non_negative(name: str, value) -> float:
-    """Return ``value`` as a float, or raise ``ValueError`` unless it is finite and >= 0."""
-    x = _real(name, value)
-    if not x >= 0.0:
-        raise ValueError(f"{name} must be a non-negative number, got {value!r}")
-    return x
-
-
 def poisson(name: str, value) -> float:
     """Return a Poisson's ratio, or raise ``ValueError`` unless -1 < value < 0.5."""
     x = _real(name, value)

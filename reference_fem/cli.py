@@ -12,6 +12,8 @@ __all__ = ["register"]
 
 def register(subparsers) -> None:
     """Add the ``fem`` command and its subcommands to the ``gdfe`` parser."""
+    from .mesh import HINGE_RESOLUTIONS
+
     fem = subparsers.add_parser("fem", help="reference finite-element bilayer model (scikit-fem)",
                                 description="Reference 3-D finite-element model of the bilayer.")
     sub = fem.add_subparsers(dest="fem_command", metavar="SUBCOMMAND")
@@ -34,7 +36,7 @@ def register(subparsers) -> None:
     p.add_argument("--width", type=float, default=1.0, help="strip width along the hinge [mm]")
     p.add_argument("--panel-length", dest="panel_length", type=float, default=2.0,
                    help="length of each panel [mm]")
-    p.add_argument("--resolution", choices=("coarse", "default", "fine"), default="default")
+    p.add_argument("--resolution", choices=tuple(HINGE_RESOLUTIONS), default="default")
     p.add_argument("--model", choices=("neohookean", "svk"), default="neohookean",
                    help="hyperelastic law of the nonlinear solve")
     p.add_argument("--max-iter", dest="max_iter", type=int, default=15,
@@ -59,7 +61,7 @@ def register(subparsers) -> None:
     p.add_argument("--table", default=None,
                    help="CSV of folding tests (default: the paper's Table 1, gdfe.TABLE1)")
     p.add_argument("--model", choices=("fem", "timoshenko"), default="fem")
-    p.add_argument("--resolution", choices=("coarse", "default", "fine"), default="default")
+    p.add_argument("--resolution", choices=tuple(HINGE_RESOLUTIONS), default="default")
     p.add_argument("--nu", type=float, default=0.35, help="Poisson's ratio of both layers")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=_cmd_calibrate)

@@ -145,8 +145,9 @@ def solve_linear(strip: LayeredStrip, material: Material, *, element: str = "hex
     fixed = constrained_dofs(strip, disc.X)
     free = np.setdiff1d(np.arange(disc.ndofs), fixed)
     u = np.zeros(disc.ndofs)
-    u[free] = _solve(K[free][:, free], f[free])
-    res = np.linalg.norm(K[free][:, free] @ u[free] - f[free]) / max(np.linalg.norm(f[free]), 1e-300)
+    Kff, ff = K[free][:, free], f[free]
+    u[free] = _solve(Kff, ff)
+    res = np.linalg.norm(Kff @ u[free] - ff) / max(np.linalg.norm(ff), 1e-300)
     ok = bool(np.all(np.isfinite(u)))
     return FemResult(strip=strip, material=material, points=disc.X, displacement=u.reshape(-1, 3),
                      nonlinear=False, converged=bool(ok and res < 1e-8), iterations=1, residual=float(res),

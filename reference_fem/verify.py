@@ -38,12 +38,6 @@ TIMOSHENKO_MESHES = {
 }
 
 
-def _strip_setup(h, d, E_ratio):
-    E_active = 3000.0
-    return Material(E_active=E_active, E_passive=E_ratio * E_active, nu_active=0.0,
-                    nu_passive=0.0, eigenstrain=-1e-3)
-
-
 def timoshenko_check(element="hex1", meshes=None, *, length=6.0, width=1.0, h=0.29, d=0.33,
                      E_ratio=0.5):
     """FEM curvature of a free bilayer strip against Timoshenko on a sequence of meshes.
@@ -73,7 +67,8 @@ def timoshenko_check(element="hex1", meshes=None, *, length=6.0, width=1.0, h=0.
     meshes = list(meshes)
     if len(meshes) < 3:
         raise ValueError(f"meshes must hold at least 3 refinements, got {len(meshes)}")
-    mat = _strip_setup(h, d, E_ratio)
+    mat = Material(E_active=3000.0, E_passive=E_ratio * 3000.0, nu_active=0.0, nu_passive=0.0,
+                   eigenstrain=-1e-3)
     kT = timoshenko_curvature(h, d, mat.E_active, mat.E_passive, mat.eigenstrain)
     rows = []
     for size, layers in meshes:
