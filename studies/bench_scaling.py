@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 
 from gdfe import bench
+from gdfe.io import write_text
 
 #: Sheet sizes [cells] per resolution; "coarse" is the benchmark's --quick mode.
 SIZES = {"coarse": None, "default": (1_000, 10_000, 100_000), "fine": (1_000, 10_000, 100_000, 1_000_000)}
@@ -29,7 +30,7 @@ def run(resolution="default", out=None):
         raise ValueError(f"resolution: expected one of {', '.join(SIZES)}, got {resolution!r}")
     result = bench.run(quick=resolution == "coarse", sizes=SIZES[resolution], out=out)
     if out is not None:
-        (Path(out) / "bench.txt").write_text(bench.format_table(result) + "\n")
+        write_text(Path(out) / "bench.txt", bench.format_table(result) + "\n")
     return result
 
 

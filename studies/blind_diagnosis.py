@@ -49,6 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gdfe.io import write_text
 from studies._common import check_resolution, finish, headline, pyplot, study_main
 
 NAME = "blind_diagnosis"
@@ -493,7 +494,7 @@ def _finish_md(result, out):
                 lines.append(f"| {name} | " + " | ".join(str(x) for x in row) + " |")
             lines.append("")
     lines += ["## Table 1", ""] + [f"- {t}" for t in result["findings"]]
-    Path(out, f"{NAME}.md").write_text("\n".join(lines) + "\n")
+    write_text(Path(out, f"{NAME}.md"), "\n".join(lines) + "\n")
     return result
 
 

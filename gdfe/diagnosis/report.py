@@ -41,7 +41,7 @@ def write_report(diag, out):
     dict of str -> str
         The files written.
     """
-    from gdfe.io import write_json
+    from gdfe.io import write_json, write_text
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -50,7 +50,7 @@ def write_report(diag, out):
              "effects": _effects_bar(diag, out / "effects.png")}
     files["json"] = write_json(out / "diagnosis.json", diag.as_dict())
     files["summary"] = out / "summary.md"
-    files["summary"].write_text(_summary_md(diag, files))
+    write_text(files["summary"], _summary_md(diag, files))
     return {k: str(v) for k, v in files.items()}
 
 
@@ -156,7 +156,7 @@ def _summary_md(diag, files):
 def write_shape_report(result, out):
     """Write ``deviation.png`` (per-region deviation before/after) and ``summary.md`` of a
     :class:`~gdfe.diagnosis.shape.ShapeDiagnosis` into ``out``."""
-    from gdfe.io import write_json
+    from gdfe.io import write_json, write_text
 
     plt = _plt()
     out = Path(out)
@@ -184,5 +184,5 @@ def write_shape_report(result, out):
     files = {"deviation": _save(plt, fig, out / "deviation.png"),
              "json": write_json(out / "shape_diagnosis.json", result.as_dict()),
              "summary": out / "summary.md"}
-    files["summary"].write_text(result.text() + "\n")
+    write_text(files["summary"], result.text() + "\n")
     return {k: str(v) for k, v in files.items()}
