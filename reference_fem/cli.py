@@ -50,7 +50,7 @@ def register(subparsers) -> None:
                        help="free bilayer strip against Timoshenko's curvature on refined meshes")
     p.add_argument("--element", choices=("hex1", "hex2", "both"), default="both",
                    help="element family (default both: trilinear shows the convergence rate, "
-                        "triquadratic is exact to round-off)")
+                        "triquadratic matches the formula to 1e-5)")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=_cmd_timoshenko_check)
 

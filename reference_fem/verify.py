@@ -8,10 +8,11 @@
     formulas coincide). The curvature is read over the middle half of the strip (the ends carry
     a boundary layer a few thicknesses long).
 
-    The triquadratic element (``hex2``) contains that field, so it reproduces the closed form to
-    round-off on every mesh; the trilinear element (``hex1``) locks in bending (parasitic shear
-    of order ``kappa * element length``), which makes it the element whose convergence can be
-    observed: its error falls as the square of the element length.
+    The triquadratic element (``hex2``) contains that field, so it matches the closed form on
+    every mesh (measured: relative error 7.5e-6 at 0.6 mm and about 1e-7 on finer meshes,
+    small but not round-off); the trilinear element (``hex1``) locks in bending (parasitic
+    shear of order ``kappa * element length``), which makes it the element whose convergence
+    can be observed: its error falls as the square of the element length.
 
 :func:`arc_check`
     A long free bilayer strip under a uniaxial eigenstrain large enough to curl it by ~2.5 rad,
