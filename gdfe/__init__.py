@@ -1,10 +1,14 @@
 """gdfe: geometry-driven finite elements for 4D-printed heat-shrinking structures.
 
-Units are millimetres and radians throughout.
+Units are millimetres and radians throughout. The library imports numpy and scipy only;
+optional packages (meshio, pillow, matplotlib, pyvista) are imported by the functions that
+need them. The command line (:mod:`gdfe.cli`) is an application layer above it.
 """
 
-from gdfe.calibration import (DEFAULT_H, PAPER_K, TABLE1, Calibration, CalibrationFit, FoldingTests,
-                              angle_from_ratio, load_folding_tests, ratio_from_angle)
+from gdfe import paper
+from gdfe._validation import GdfeError
+from gdfe.calibration import (DEFAULT_H, PAPER_K, READINGS, TABLE1, Calibration, CalibrationFit, FoldingTests,
+                              angle_from_ratio, fit_reading, load_folding_tests, ratio_from_angle)
 from gdfe.design import Design, Material, from_masks, from_rows, grid_design, hinge, load_design
 from gdfe.measure import curvature_profile, fold_angle, rigid_align, shape_distance
 from gdfe.mesh import HexMesh, sheet_mesh
@@ -13,8 +17,9 @@ from gdfe.solver import ConvergenceError, Result, Solver, energy, rest_shapes, s
 __version__ = "0.1.0"
 
 __all__ = [
-    "DEFAULT_H", "PAPER_K", "TABLE1", "Calibration", "CalibrationFit", "FoldingTests", "angle_from_ratio",
-    "load_folding_tests", "ratio_from_angle",
+    "paper", "GdfeError",
+    "DEFAULT_H", "PAPER_K", "READINGS", "TABLE1", "Calibration", "CalibrationFit", "FoldingTests",
+    "angle_from_ratio", "fit_reading", "load_folding_tests", "ratio_from_angle",
     "Design", "Material", "from_masks", "from_rows", "grid_design", "hinge", "load_design",
     "curvature_profile", "fold_angle", "rigid_align", "shape_distance",
     "HexMesh", "sheet_mesh",

@@ -14,6 +14,20 @@ Eq. 3 (Eq. 1 in Eq. 2)::
 
 All lengths in millimetres, angles in radians. ``K`` multiplies a length-free regressor
 ``sqrt(h/d**3) * L``, so it is dimensionless.
+
+Every reading of Eq. 1 says the fold angle grows in proportion to the hinge width ``L``,
+so Eq. 2 turns each into a contraction ratio ``R(d, h) = 1 - alpha h / L`` (a reading of
+Eq. 3). :func:`fit_reading` fits three:
+
+==========  =============================  ==========================  ============================
+model       fold angle                     parameters                  Eq. 3 reading
+==========  =============================  ==========================  ============================
+``eq1``     ``K sqrt(h/d^3) L`` (printed)  K (dimensionless)           ``1 - K (h/d)^1.5``
+``eq1-d1``  ``K sqrt(h/d) L``              K [1/mm]                    ``1 - K h (h/d)^0.5``
+``power``   ``c (L/h) (h/d)^p``            c (dimensionless), p        ``1 - c (h/d)^p``
+==========  =============================  ==========================  ============================
+
+R² is reported about the mean (``r2``) and about zero (``r2_uncentered``).
 """
 
 from __future__ import annotations
@@ -21,11 +35,11 @@ from __future__ import annotations
 import csv
 import dataclasses
 import math
-from pathlib import Path
 
 import numpy as np
 
-from gdfe._validate import check_positive
+from gdfe import paper
+from gdfe._validation import (GdfeError, check_choice, check_file, check_int, check_positive)
 
 __all__ = [
     "TABLE1",
@@ -33,6 +47,10 @@ __all__ = [
     "DEFAULT_H",
     "Calibration",
     "CalibrationFit",
+    "READINGS",
+    "fit_reading",
+    "fit_quality",
+    "regressor",
     "FoldingTests",
     "load_folding_tests",
     "ratio_from_angle",
@@ -40,12 +58,12 @@ __all__ = [
 ]
 
 #: Table 1 of the paper (18 folding tests), shipped with the package.
-TABLE1 = Path(__file__).resolve().parent / "data" / "table1.csv"
+TABLE1 = paper.TABLE1
 
 #: K of Eq. 1 as printed in the paper.
-PAPER_K = 0.3706
+PAPER_K = paper.K
 #: Active-film thickness of all of the paper's tests [mm].
-DEFAULT_H = 0.29
+DEFAULT_H = paper.H
 
 
 def ratio_from_angle(alpha, L, h=DEFAULT_H):
@@ -106,7 +124,7 @@ class Calibration:
         if np.any(R <= 0):
             bad = np.atleast_1d(d_arr)[np.atleast_1d(R) <= 0][0]
             Rb = 1.0 - self.K * (h / bad) ** 1.5
-            raise ValueError(
+            raise GdfeError(
                 f"d={bad:g} mm gives R={Rb:.4g} by Eq. 3 (K={self.K:g}, h={h:g} mm); "
                 f"a contraction ratio must lie in (0, 1], which needs d > {self.d_min(h):.4g} mm"
             )
@@ -134,20 +152,32 @@ class Calibration:
         -------
         CalibrationFit
         """
-        if not isinstance(tests, FoldingTests):
-            tests = load_folding_tests(tests)
-        x = np.sqrt(tests.h / tests.d**3) * tests.L
-        return _fit_through_origin(x, tests.alpha, n_boot, seed, "eq1", cls)
+        return fit_reading(tests, "eq1", n_boot=n_boot, seed=seed)
+
+
+#: The readings of Eq. 1 that :func:`fit_reading` fits (see the module docstring).
+READINGS = ("eq1", "eq1-d1", "power")
+
+#: What each reading says, in words.
+DESCRIPTIONS = {
+    "eq1": "alpha = K sqrt(h/d^3) L (Eq. 1 as printed)",
+    "eq1-d1": "alpha = K sqrt(h/d) L (d to the first power)",
+    "power": "alpha = c (L/h) (h/d)^p (exponent of d fitted)",
+}
 
 
 @dataclasses.dataclass(frozen=True)
 class CalibrationFit:
-    """A least-squares fit of ``alpha = K x`` to folding tests.
+    """A reading of Eq. 1 fitted to folding tests (or given, with :meth:`reading`).
 
     Attributes
     ----------
+    model : str
+        The reading, one of :data:`READINGS`.
     K : float
-        Fitted coefficient.
+        ``K`` of ``eq1`` (dimensionless) or ``eq1-d1`` [1/mm]; ``c`` of ``power``.
+    p : float
+        Exponent of ``h/d`` (1.5 for ``eq1``, 0.5 for ``eq1-d1``, fitted for ``power``).
     r2 : float
         Coefficient of determination about the mean, ``1 - SS_res / SS_tot``.
     r2_uncentered : float
@@ -155,57 +185,164 @@ class CalibrationFit:
     rmse : float
         Root-mean-square residual [rad].
     n : int
-        Number of tests.
-    K_ci : tuple of float
-        95 % bootstrap confidence interval of K (percentile method).
+        Number of tests (0 for a reading with no fit behind it).
+    K_ci, p_ci : (2,) tuples
+        95 % percentile-bootstrap intervals over the tests (``p_ci`` is ``(p, p)`` where p is fixed).
     residuals : (n,) float array [rad]
         Measured minus fitted angle.
-    model : str
-        Name of the regressor (``"eq1"``: ``sqrt(h/d^3) L``).
     """
 
+    model: str
     K: float
+    p: float
     r2: float
     r2_uncentered: float
     rmse: float
     n: int
     K_ci: tuple
+    p_ci: tuple
     residuals: np.ndarray
-    model: str
-    calibration: Calibration
+
+    @classmethod
+    def reading(cls, model, K, p):
+        """The reading ``model`` with given ``K`` and ``p`` and no fit behind it (fit fields empty)."""
+        check_choice("model", model, READINGS)
+        return cls(model=model, K=K, p=p, r2=np.nan, r2_uncentered=np.nan, rmse=np.nan, n=0,
+                   K_ci=(K, K), p_ci=(p, p), residuals=np.zeros(0))
+
+    @property
+    def calibration(self) -> "Calibration":
+        """Eq. 1-3 with this K (the ``eq1`` reading only)."""
+        if self.model != "eq1":
+            raise GdfeError(f"calibration: only the eq1 reading is Eq. 1-3 with a K, got {self.model!r}")
+        return Calibration(K=self.K)
+
+    def slope(self, d, h):
+        """``alpha / L`` [rad/mm] of this reading."""
+        d = np.asarray(d, float)
+        h = np.asarray(h, float)
+        if self.model == "eq1-d1":
+            return self.K * np.sqrt(h / d)
+        return self.K / h * (h / d) ** self.p
+
+    def alpha(self, L, d, h):
+        """Fold angle [rad] of this reading."""
+        return self.slope(d, h) * np.asarray(L, float)
+
+    def ratio(self, d, h):
+        """Eq. 3 of this reading: ``R = 1 - alpha h / L`` (may be <= 0 for thin passive layers)."""
+        return 1.0 - self.slope(d, h) * np.asarray(h, float)
+
+    def d_min(self, h):
+        """Passive thickness [mm] below which this reading's Eq. 3 gives R <= 0."""
+        if self.model == "eq1-d1":
+            return h * (self.K * h) ** 2
+        return h * self.K ** (1.0 / self.p)
 
     def as_dict(self):
-        return {
-            "model": self.model,
-            "K": self.K,
-            "K_ci95": list(self.K_ci),
-            "r2": self.r2,
-            "r2_uncentered": self.r2_uncentered,
-            "rmse": self.rmse,
-            "n": self.n,
-            "residuals": self.residuals.tolist(),
-        }
+        return {"model": self.model, "description": DESCRIPTIONS[self.model], "K": self.K, "p": self.p,
+                "K_ci95": list(self.K_ci), "p_ci95": list(self.p_ci), "r2": self.r2,
+                "r2_uncentered": self.r2_uncentered, "rmse": self.rmse, "n": self.n,
+                "residuals": np.asarray(self.residuals).tolist()}
+
+    def text(self):
+        """Human-readable lines of the fit."""
+        unit = " 1/mm" if self.model == "eq1-d1" else ""
+        lines = [f"model  {self.model}: {DESCRIPTIONS[self.model]}",
+                 f"K      {self.K:.4f}{unit}  (95 % bootstrap CI {self.K_ci[0]:.4f} .. {self.K_ci[1]:.4f})"]
+        if self.model == "power":
+            lines.append(f"p      {self.p:.4f}  (95 % bootstrap CI {self.p_ci[0]:.4f} .. {self.p_ci[1]:.4f})")
+        lines += [f"r2     {self.r2:.4f}  (about the mean; {self.r2_uncentered:.4f} about zero)",
+                  f"rmse   {self.rmse:.4f} rad", f"n      {self.n}"]
+        return "\n".join(lines)
 
 
-def _fit_through_origin(x, y, n_boot, seed, model, cls=Calibration):
-    x = np.asarray(x, float)
-    y = np.asarray(y, float)
-    if x.size < 2:
-        raise ValueError(f"tests: need at least 2 folding tests to fit K, got {x.size}")
-    K = float(x @ y / (x @ x))
-    res = y - K * x
+def regressor(model, L, d, h):
+    """Abscissa of a through-origin reading: ``sqrt(h/d^3) L`` (eq1) or ``sqrt(h/d) L`` (eq1-d1)."""
+    L, d, h = (np.asarray(v, float) for v in (L, d, h))
+    if model == "eq1":
+        return np.sqrt(h / d**3) * L
+    if model == "eq1-d1":
+        return np.sqrt(h / d) * L
+    raise GdfeError(f"model: expected 'eq1' or 'eq1-d1' (a reading with one regressor), got {model!r}")
+
+
+def fit_quality(y, fitted):
+    """R² about the mean, R² about zero, rmse and residuals of ``fitted`` against ``y``."""
+    res = y - fitted
     ss = float(res @ res)
-    r2 = 1.0 - ss / float(((y - y.mean()) ** 2).sum())
-    r2u = 1.0 - ss / float(y @ y)
+    return (1.0 - ss / float(((y - y.mean()) ** 2).sum()), 1.0 - ss / float(y @ y),
+            math.sqrt(ss / y.size), res)
+
+
+def _power_fit(x_over_h, q, y):
+    """Least squares of ``y = c * x_over_h * q**p`` over c (closed form) and p (bounded search)."""
+    from scipy.optimize import minimize_scalar
+
+    lq = np.log(q)
+
+    def sse(p):
+        z = x_over_h * np.exp(p * lq)
+        c = (z @ y) / (z @ z)
+        r = y - c * z
+        return r @ r
+
+    opt = minimize_scalar(sse, bounds=(-2.0, 5.0), method="bounded", options={"xatol": 1e-8})
+    p = float(opt.x)
+    z = x_over_h * np.exp(p * lq)
+    return float((z @ y) / (z @ z)), p
+
+
+def fit_reading(tests, model="eq1", n_boot=2000, seed=0):
+    """Fit one reading of Eq. 1 to folding tests.
+
+    ``eq1`` and ``eq1-d1`` are fitted by least squares through the origin, ``power`` by
+    least squares in ``alpha`` (``c`` in closed form for each ``p``, ``p`` by a bounded 1-D
+    search). Intervals are 95 % percentile bootstraps over the tests.
+
+    Parameters
+    ----------
+    tests : FoldingTests or str or Path
+        The tests, or a CSV with columns ``L_mm, d_mm, h_mm, alpha_rad``.
+    model : {"eq1", "eq1-d1", "power"}
+    n_boot : int
+        Bootstrap resamples (0: no interval).
+    seed : int
+        Seed of the bootstrap's random generator.
+
+    Returns
+    -------
+    CalibrationFit
+    """
+    check_choice("model", model, READINGS)
+    n_boot = check_int("n_boot", n_boot, minimum=0)
+    if not isinstance(tests, FoldingTests):
+        tests = load_folding_tests(tests)
+    L, d, h, y = tests.L, tests.d, tests.h, tests.alpha
+    n = y.size
+    need = 3 if model == "power" else 2
+    if n < need:
+        raise GdfeError(f"tests: expected at least {need} folding tests to fit {model}, got {n}")
     rng = np.random.default_rng(seed)
-    idx = rng.integers(0, x.size, size=(int(n_boot), x.size))
-    xb, yb = x[idx], y[idx]
-    Kb = (xb * yb).sum(1) / (xb * xb).sum(1)
-    ci = (float(np.percentile(Kb, 2.5)), float(np.percentile(Kb, 97.5)))
-    return CalibrationFit(
-        K=K, r2=r2, r2_uncentered=r2u, rmse=math.sqrt(ss / x.size), n=int(x.size), K_ci=ci,
-        residuals=res, model=model, calibration=cls(K=K),
-    )
+    idx = rng.integers(0, n, size=(int(n_boot), n)) if n_boot else np.zeros((0, n), int)
+    if model == "power":
+        K, p = _power_fit(L / h, h / d, y)
+        fitted = K * (L / h) * (h / d) ** p
+        boots = np.array([_power_fit((L / h)[i], (h / d)[i], y[i]) for i in idx]).reshape(-1, 2)
+        K_ci = tuple(np.percentile(boots[:, 0], [2.5, 97.5]).tolist()) if n_boot else (K, K)
+        p_ci = tuple(np.percentile(boots[:, 1], [2.5, 97.5]).tolist()) if n_boot else (p, p)
+    else:
+        x = regressor(model, L, d, h)
+        K = float(x @ y / (x @ x))
+        p = 1.5 if model == "eq1" else 0.5
+        fitted = K * x
+        xb, yb = x[idx], y[idx]
+        Kb = (xb * yb).sum(1) / (xb * xb).sum(1)
+        K_ci = tuple(np.percentile(Kb, [2.5, 97.5]).tolist()) if n_boot else (K, K)
+        p_ci = (p, p)
+    r2, r2u, rmse, res = fit_quality(y, fitted)
+    return CalibrationFit(model=model, K=float(K), p=float(p), r2=r2, r2_uncentered=r2u, rmse=rmse, n=int(n),
+                          K_ci=K_ci, p_ci=p_ci, residuals=res)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -240,9 +377,7 @@ def load_folding_tests(path, default_h=None):
         Naming the row (1-based, header is row 1) and column of each missing, non-numeric
         or non-positive value, or the missing columns.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"folding-test CSV not found: {path}")
+    path = check_file("folding tests", path, what="CSV file")
     with path.open(newline="") as f:
         reader = csv.DictReader(f)
         header = [c.strip() for c in (reader.fieldnames or [])]
@@ -250,13 +385,13 @@ def load_folding_tests(path, default_h=None):
         required = [c for c in _COLUMNS if not (c == "h_mm" and default_h is not None)]
         missing = [c for c in required if c not in header]
         if missing:
-            raise ValueError(
+            raise GdfeError(
                 f"{path.name}: missing column(s) {', '.join(missing)}; expected {', '.join(_COLUMNS)}, "
                 f"got {', '.join(header) or 'no header'}"
             )
         rows = list(reader)
     if not rows:
-        raise ValueError(f"{path.name}: no data rows")
+        raise GdfeError(f"{path.name}: no data rows")
     cols = {c: [] for c in _COLUMNS}
     extra = {c: [] for c in header if c not in _COLUMNS}
     errors = []
@@ -280,7 +415,7 @@ def load_folding_tests(path, default_h=None):
         for c in extra:
             extra[c].append((row.get(c) or "").strip())
     if errors:
-        raise ValueError(f"{path.name}: " + "; ".join(errors))
+        raise GdfeError(f"{path.name}: " + "; ".join(errors))
     return FoldingTests(
         L=np.array(cols["L_mm"]), d=np.array(cols["d_mm"]), h=np.array(cols["h_mm"]),
         alpha=np.array(cols["alpha_rad"]), extra={k: np.array(v) for k, v in extra.items()},

@@ -25,7 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from gdfe._validate import check_int, check_positive, check_ratio
+from gdfe._validation import (GdfeError, GdfeFileNotFoundError, check_choice, check_number,
+                              check_positive, check_ratio)
 from gdfe.calibration import DEFAULT_H, PAPER_K, Calibration
 from gdfe.mesh import HexMesh, sheet_mesh
 
@@ -85,14 +86,14 @@ class Design:
         self.material = np.asarray(self.material, dtype=np.int8)
         self.R = np.broadcast_to(np.asarray(self.R, dtype=float), (m,)).copy()
         if self.material.shape != (m,):
-            raise ValueError(f"material: expected shape ({m},), got {self.material.shape}")
+            raise GdfeError(f"material: expected shape ({m},), got {self.material.shape}")
         if not np.isin(self.material, list(map(int, Material))).all():
-            raise ValueError(f"material: expected codes {[int(c) for c in Material]}, "
+            raise GdfeError(f"material: expected codes {[int(c) for c in Material]}, "
                              f"got {sorted(set(self.material.tolist()))}")
         check_ratio("R", self.R)
         self.h = check_positive("h", self.h)
-        if not 0.0 <= float(self.isotropy) <= 1.0:
-            raise ValueError(f"isotropy: expected a number in [0, 1], got {self.isotropy}")
+        self.isotropy = check_number("isotropy", self.isotropy, minimum=0.0, maximum=1.0,
+                                     what="a number in [0, 1]")
 
     @property
     def n_cells(self) -> int:
@@ -102,12 +103,25 @@ class Design:
         """A copy of the design with other contraction ratios (scalar or per cell)."""
         return dataclasses.replace(self, R=np.broadcast_to(np.asarray(R, float), self.R.shape).copy())
 
+    def face_contraction(self):
+        """Contraction ``1 - R`` of the top and of the bottom face of every cell (0 where coated).
+
+        Returns
+        -------
+        top, bottom : (m,) float arrays
+        """
+        mat = self.material
+        s = 1.0 - self.R
+        top = np.where((mat == Material.CONTRACT_TOP) | (mat == Material.FREE_SHRINK), s, 0.0)
+        bottom = np.where((mat == Material.CONTRACT_BOTTOM) | (mat == Material.FREE_SHRINK), s, 0.0)
+        return top, bottom
+
     def region_cells(self, name) -> np.ndarray:
         """Cell indices of region ``name``, through the whole thickness."""
         try:
             return self.regions[name]
         except KeyError:
-            raise KeyError(f"region {name!r} not in design; it has {sorted(self.regions)}") from None
+            raise GdfeError(f"region: expected one of {sorted(self.regions)}, got {name!r}") from None
 
     def summary(self) -> dict:
         counts = {mat.name.lower(): int((self.material == mat).sum()) for mat in Material}
@@ -141,7 +155,7 @@ def grid_design(material2d, R, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0, film=
     """
     material2d = np.asarray(material2d)
     if material2d.ndim != 2:
-        raise ValueError(f"material2d: expected a 2-D grid, got shape {material2d.shape}")
+        raise GdfeError(f"material2d: expected a 2-D grid, got shape {material2d.shape}")
     dx, dy = np.broadcast_to(np.asarray(pixel, float), (2,))
     if isotropy > 0 and max(dx, dy) > 1.5 * min(dx, dy):
         # measured by studies/fig07_crease_fold.py (fine tube meshes): a tube's fold per hinge
@@ -151,7 +165,7 @@ def grid_design(material2d, R, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0, film=
                     "the fold; use square cells (aspect <= 1.5)", dx, dy)
     keep = np.ones(material2d.shape, bool) if film is None else np.asarray(film, bool)
     if keep.shape != material2d.shape:
-        raise ValueError(f"film: expected shape {material2d.shape}, got {keep.shape}")
+        raise GdfeError(f"film: expected shape {material2d.shape}, got {keep.shape}")
     mesh = sheet_mesh(keep, dx, dy, h, nz=nz)
     i, j = mesh.cell_ij.T
     R2 = np.broadcast_to(np.asarray(R, float), material2d.shape)
@@ -206,11 +220,10 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
     h = check_positive("h", h)
     if R is None:
         if d is None:
-            raise ValueError("hinge: give the passive thickness d (mm) or the contraction ratio R")
+            raise GdfeError("hinge: give the passive thickness d (mm) or the contraction ratio R")
         R = float(Calibration(K=K, h=h).ratio(d))
     R = check_ratio("R", R)
-    if face not in ("top", "bottom"):
-        raise ValueError(f"face: expected 'top' or 'bottom', got {face!r}")
+    check_choice("face", face, ("top", "bottom"))
     if cell_size is None:
         cell_size = min(length / 16.0, width / 2.0)
     cell_size = check_positive("cell_size", cell_size)
@@ -241,14 +254,14 @@ def from_rows(rows, R, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0):
     the bottom, ``S`` free shrink, ``.`` no film.
     """
     if isinstance(rows, str) or not rows:
-        raise ValueError("rows: expected a non-empty list of strings")
+        raise GdfeError("rows: expected a non-empty list of strings")
     widths = {len(r) for r in rows}
     if len(widths) != 1:
-        raise ValueError(f"rows: all rows must have the same length, got lengths {sorted(widths)}")
+        raise GdfeError(f"rows: all rows must have the same length, got lengths {sorted(widths)}")
     grid = np.array([list(r) for r in rows])[::-1].T  # (nx, ny), j = 0 at the bottom row
     bad = set(np.unique(grid)) - set(LAYOUT_CHARS) - {"."}
     if bad:
-        raise ValueError(f"rows: unknown layout character(s) {sorted(bad)}; expected one of R T B S .")
+        raise GdfeError(f"rows: unknown layout character(s) {sorted(bad)}; expected one of R T B S .")
     film = grid != "."
     mat = np.zeros(grid.shape, int)
     for ch, code in LAYOUT_CHARS.items():
@@ -261,7 +274,7 @@ def _read_mask(name, value, shape=None):
     if isinstance(value, (str, Path)):
         path = Path(value)
         if not path.is_file():
-            raise FileNotFoundError(f"{name}: mask image not found: {path}")
+            raise GdfeFileNotFoundError(f"{name}: mask image not found: {path}")
         from PIL import Image
 
         img = Image.open(path)
@@ -274,9 +287,9 @@ def _read_mask(name, value, shape=None):
     else:
         arr = np.asarray(value, bool)
     if arr.ndim != 2:
-        raise ValueError(f"{name}: expected a 2-D mask, got shape {arr.shape}")
+        raise GdfeError(f"{name}: expected a 2-D mask, got shape {arr.shape}")
     if shape is not None and arr.shape != shape:
-        raise ValueError(f"{name}: expected a mask of shape {shape} (like 'top'), got {arr.shape}")
+        raise GdfeError(f"{name}: expected a mask of shape {shape} (like 'top'), got {arr.shape}")
     return arr
 
 
@@ -325,18 +338,18 @@ def load_design(path):
         import tomli as tomllib
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"design file not found: {path}")
+        raise GdfeFileNotFoundError(f"design file not found: {path}")
     try:
         doc = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path.name}: not valid TOML: {exc}") from None
+        raise GdfeError(f"{path.name}: not valid TOML: {exc}") from None
     film = doc.get("film")
     if not isinstance(film, dict):
-        raise ValueError(f"{path.name}: missing [film] table (h, and R or d)")
+        raise GdfeError(f"{path.name}: missing [film] table (h, and R or d)")
     known = {"h", "R", "d", "K", "nz", "isotropy"}
     unknown = set(film) - known
     if unknown:
-        raise ValueError(f"{path.name}: [film] has unknown key(s) {sorted(unknown)}; expected {sorted(known)}")
+        raise GdfeError(f"{path.name}: [film] has unknown key(s) {sorted(unknown)}; expected {sorted(known)}")
     h = film.get("h", DEFAULT_H)
     K = film.get("K", PAPER_K)
     if "R" in film:
@@ -344,12 +357,12 @@ def load_design(path):
     elif "d" in film:
         R = float(Calibration(K=K, h=h).ratio(film["d"]))
     else:
-        raise ValueError(f"{path.name}: [film] needs R (contraction ratio) or d (passive thickness, mm)")
+        raise GdfeError(f"{path.name}: [film] needs R (contraction ratio) or d (passive thickness, mm)")
     nz = film.get("nz", 2)
     iso = film.get("isotropy", 1.0)
     kinds = [k for k in ("hinge", "layout", "masks") if k in doc]
     if len(kinds) != 1:
-        raise ValueError(f"{path.name}: expected exactly one of [hinge], [layout], [masks]; got {kinds or 'none'}")
+        raise GdfeError(f"{path.name}: expected exactly one of [hinge], [layout], [masks]; got {kinds or 'none'}")
     kind = kinds[0]
     spec = doc[kind]
     try:
@@ -364,10 +377,10 @@ def load_design(path):
             des = from_masks(base / spec["top"], base / spec["bottom"], spec["pixel"], R, h=h,
                              nz=film.get("nz", 1), isotropy=iso, film=film_mask)
     except KeyError as exc:
-        raise ValueError(f"{path.name}: [{kind}] is missing {exc.args[0]!r}") from None
+        raise GdfeError(f"{path.name}: [{kind}] is missing {exc.args[0]!r}") from None
     des.meta.setdefault("source", str(path))
     options = dict(doc.get("simulate", {}))
     unknown = set(options) - {"steps", "tol", "max_iter", "method"}
     if unknown:
-        raise ValueError(f"{path.name}: [simulate] has unknown key(s) {sorted(unknown)}")
+        raise GdfeError(f"{path.name}: [simulate] has unknown key(s) {sorted(unknown)}")
     return des, options

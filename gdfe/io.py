@@ -16,7 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["write_vtu", "write_series", "render_png", "write_json", "write_text", "surface_faces"]
+from gdfe._validation import GdfeTypeError
+
+__all__ = ["write_vtu", "write_series", "render_png", "write_json", "write_text", "surface_faces", "atomic_path",
+           "json_default", "save_figure"]
 
 log = logging.getLogger(__name__)
 
@@ -25,7 +28,7 @@ MATERIAL_COLOURS = np.array([[0.62, 0.62, 0.66], [0.95, 0.55, 0.15], [0.2, 0.5, 
 
 
 @contextlib.contextmanager
-def _atomic(path):
+def atomic_path(path):
     """Yield a temporary path beside ``path``; rename it to ``path`` only on success."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -54,7 +57,7 @@ def write_vtu(path, points, design, point_data=None):
     mesh = meshio.Mesh(np.asarray(points, float), [("hexahedron", design.mesh.cells)],
                        cell_data={k: [v] for k, v in _cell_data(design).items()},
                        point_data=point_data or {})
-    with _atomic(path) as tmp:
+    with atomic_path(path) as tmp:
         meshio.write(tmp, mesh, file_format="vtu")
     return Path(path)
 
@@ -112,7 +115,7 @@ def render_png(result_or_points, path, design=None, title=None, window_size=(100
     else:
         points = np.asarray(result_or_points, float)
         if design is None:
-            raise TypeError("design: needed when rendering an array of points")
+            raise GdfeTypeError("design: needed when rendering an array of points")
     faces, owner = surface_faces(design)
     colours = (MATERIAL_COLOURS[design.material[owner]] * 255).astype(np.uint8)
     path = Path(path)
@@ -143,17 +146,17 @@ def _render_pyvista(points, faces, colours, path, title, window_size):
     pl.view_isometric()
     pl.camera.elevation = -10
     pl.reset_camera()
-    with _atomic(path) as tmp:
+    with atomic_path(path) as tmp:
         pl.screenshot(str(tmp))
     pl.close()
 
 
 def _render_matplotlib(points, faces, colours, path, title, window_size):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    from gdfe._plotting import pyplot
+
+    plt = pyplot()
 
     fig = plt.figure(figsize=(window_size[0] / 100, window_size[1] / 100), dpi=100)
     ax = fig.add_subplot(projection="3d")
@@ -165,20 +168,41 @@ def _render_matplotlib(points, faces, colours, path, title, window_size):
            xlabel="x [mm]", ylabel="y [mm]", zlabel="z [mm]")
     if title:
         ax.set_title(title)
-    with _atomic(path) as tmp:
+    with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png")
     plt.close(fig)
 
 
+def save_figure(fig, path, **kwargs):
+    """Save a matplotlib figure to ``path`` (renamed into place when complete) and close it."""
+    from gdfe._plotting import pyplot
+
+    path = Path(path)
+    fmt = kwargs.pop("format", path.suffix.lstrip(".") or "png")
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, format=fmt, **kwargs)
+    finally:
+        pyplot().close(fig)
+    return path
+
+
 def write_text(path, text):
     """Write ``text`` to ``path`` (renamed into place when complete)."""
-    with _atomic(path) as tmp:
+    with atomic_path(path) as tmp:
         tmp.write_text(text)
     return Path(path)
 
 
+def json_default(o):
+    """``json.dumps``'s ``default``: numpy scalars and arrays as Python numbers and lists."""
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
 def write_json(path, obj):
     """Write ``obj`` as indented JSON (numpy scalars and arrays converted)."""
-    from gdfe.cli import _json_default
-
-    return write_text(path, json.dumps(obj, indent=2, default=_json_default) + "\n")
+    return write_text(path, json.dumps(obj, indent=2, default=json_default) + "\n")

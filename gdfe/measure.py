@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from gdfe._validation import GdfeError, GdfeTypeError
+
 __all__ = ["fold_angle", "curvature_profile", "rigid_align", "shape_distance", "column_frames"]
 
 
@@ -26,7 +28,7 @@ def rigid_align(source, target, weights=None):
     source = np.asarray(source, float)
     target = np.asarray(target, float)
     if source.shape != target.shape or source.ndim != 2 or source.shape[1] != 3:
-        raise ValueError(f"source, target: expected two (n, 3) arrays of the same shape, "
+        raise GdfeError(f"source, target: expected two (n, 3) arrays of the same shape, "
                          f"got {source.shape} and {target.shape}")
     w = np.ones(len(source)) if weights is None else np.asarray(weights, float)
     w = w / w.sum()
@@ -157,8 +159,8 @@ def _points_design(result, design):
     if hasattr(result, "points") and hasattr(result, "design"):
         return result.points, result.design
     if design is None:
-        raise TypeError("design: needed when result is an array of points")
+        raise GdfeTypeError("design: needed when result is an array of points")
     pts = np.asarray(result, float)
     if pts.shape != design.mesh.points.shape:
-        raise ValueError(f"result: expected points of shape {design.mesh.points.shape}, got {pts.shape}")
+        raise GdfeError(f"result: expected points of shape {design.mesh.points.shape}, got {pts.shape}")
     return pts, design

@@ -11,7 +11,7 @@ import dataclasses
 
 import numpy as np
 
-from gdfe._validate import check_int, check_positive
+from gdfe._validation import GdfeError, check_int, check_positive
 
 __all__ = ["HexMesh", "sheet_mesh"]
 
@@ -82,9 +82,9 @@ def sheet_mesh(keep, dx, dy, h, nz=2, origin=(0.0, 0.0)):
     """
     keep = np.asarray(keep, dtype=bool)
     if keep.ndim != 2 or keep.size == 0:
-        raise ValueError(f"keep: expected a non-empty 2-D boolean grid, got shape {keep.shape}")
+        raise GdfeError(f"keep: expected a non-empty 2-D boolean grid, got shape {keep.shape}")
     if not keep.any():
-        raise ValueError("keep: the grid has no cell of film")
+        raise GdfeError("keep: the grid has no cell of film")
     dx, dy, h = check_positive("dx", dx), check_positive("dy", dy), check_positive("h", h)
     nz = check_int("nz", nz)
     nx, ny = keep.shape

@@ -5,7 +5,7 @@ large-scale shape: which way long strips curve, where an incompatible sheet buck
 That shape is decided at lengths far above the pixel, so a design coarsened 2 x 2 in
 the plane finds it at a quarter of the cost; its shape, interpolated onto the fine mesh,
 starts the fine solve (``gdfe.simulate(..., init="multilevel")``, the default above
-:data:`gdfe.solver.MULTILEVEL_CELLS` cells).
+:data:`gdfe.solver.MULTILEVEL_CELLS` cells; see :func:`gdfe.solver.starts.multilevel_start`).
 
 Coarsening keeps the contraction, not the pixels: a coarse cell contracts on a face by
 the mean contraction ``1 - R`` of its fine cells on that face (a rigid fine cell counts
@@ -18,9 +18,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .design import Design, Material
-from .mesh import sheet_mesh
-from .solver import face_contraction
+from gdfe._validation import check_instance
+from gdfe.design import Design, Material
+from gdfe.mesh import sheet_mesh
 
 __all__ = ["coarsen"]
 
@@ -43,8 +43,7 @@ def coarsen(design):
     prolong : (n_fine, n_coarse) sparse matrix
         Bilinear interpolation in the plane: ``prolong @ coarse_points`` is a fine shape.
     """
-    if not isinstance(design, Design):
-        raise TypeError(f"design: expected a gdfe.Design, got {type(design).__name__}")
+    check_instance("design", design, Design)
     mesh = design.mesh
     dx, dy, _ = mesh.spacing
     nz = int(mesh.cell_k.max()) + 1
@@ -52,7 +51,7 @@ def coarsen(design):
     k = mesh.cell_k
     I, J = i // 2, j // 2
     nI, nJ = int(I.max()) + 1, int(J.max()) + 1
-    top, bottom = face_contraction(design)
+    top, bottom = design.face_contraction()
     # sums over the fine cells of each coarse column (layers kept apart)
     idx = (k * nJ + J) * nI + I
     size = nz * nI * nJ

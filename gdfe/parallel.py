@@ -5,6 +5,8 @@ from __future__ import annotations
 import logging
 import os
 
+from gdfe._validation import check_int
+
 __all__ = ["parallel_map"]
 
 log = logging.getLogger(__name__)
@@ -34,8 +36,7 @@ def parallel_map(func, items, n_jobs=None, desc=None, progress=None):
     items = list(items)
     if n_jobs is None:
         n_jobs = int(os.environ.get("GDFE_JOBS", os.cpu_count() or 1))
-    if n_jobs < 1:
-        raise ValueError(f"n_jobs: expected an integer >= 1, got {n_jobs}")
+    n_jobs = check_int("n_jobs", n_jobs)
     if progress is None:
         import sys
 

@@ -9,23 +9,23 @@ total Lagrangian, ``F = F_e F*``). It is the yardstick for GDFE's angles, shapes
 
 Units: millimetres, radians, MPa.
 
->>> from reference_fem import Material, hinge_mesh, solve_linear, fold_angle
+>>> from reference_fem import BilayerMaterial, hinge_mesh, solve_linear, fold_angle
 >>> strip = hinge_mesh(length=1.6, d=0.33, h=0.29, resolution="coarse")
->>> res = solve_linear(strip, Material())
+>>> res = solve_linear(strip, BilayerMaterial())
 >>> res.converged
 True
 """
 
 from .calibrate import DEFAULT_RATIOS, TableFit, fit_to_table, unit_angles
-from .material import CALIBRATED_E_RATIO, CALIBRATED_EIGENSTRAIN, DEFAULT_E_PASSIVE, Material
+from .material import CALIBRATED_E_RATIO, CALIBRATED_EIGENSTRAIN, DEFAULT_E_PASSIVE, BilayerMaterial
 from .measure import curvature, fit_circle, fold_angle, midline, midsurface, tangent_angles, turning_angle
 from .mesh import HINGE_RESOLUTIONS, LayeredStrip, Segment, hinge_mesh, layered_strip, strip_mesh
 from .solve import FemResult, solve_linear, solve_nonlinear
-from .timoshenko import laminate_curvature, timoshenko_curvature
+from gdfe.timoshenko import laminate_curvature, timoshenko_curvature
 from .verify import arc_check, timoshenko_check
 
 __all__ = [
-    "Material",
+    "BilayerMaterial",
     "CALIBRATED_E_RATIO",
     "CALIBRATED_EIGENSTRAIN",
     "DEFAULT_E_PASSIVE",

@@ -1,6 +1,7 @@
-"""Vectorised element kernels: small-strain and total-Lagrangian St Venant-Kirchhoff with eigenstrain.
+"""Vectorised element kernels: small strain, and total Lagrangian with eigenstrain (neo-Hookean, the
+default of :func:`reference_fem.solve_nonlinear`, or St Venant-Kirchhoff).
 
-Nonlinear model (per quadrature point, reference gradient ``F = I + grad u``): the film's free
+St Venant-Kirchhoff model (per quadrature point, reference gradient ``F = I + grad u``): the film's free
 stretch ``F* = diag(1 + eps*)`` is split off multiplicatively, ``F = F_e F*``, so with
 ``G = F*^-1`` (diagonal) the elastic Green strain is
 
@@ -15,6 +16,9 @@ the stored energy per reference volume is ``W = J* (lambda/2 tr(E_e)^2 + mu E_e:
 
 assembled per pair of basis functions with batched ``einsum`` contractions over the quadrature points.
 
+Neo-Hookean model (the default): the same split ``F_e = F G``, with the energy and tangent
+written in :func:`neohookean_state`.
+
 Small-strain model: ``sigma = C : (eps(u) - eps*)``; its stiffness is the tangent above at
 ``F = G = I``, ``S = 0`` and its load is ``int grad(phi) : C : eps* dV``.
 
@@ -26,6 +30,8 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+
+from gdfe._validation import GdfeError
 
 _ELEMENTS = {"hex1": ("ElementHex1", 2), "hex2": ("ElementHex2", 4), "hexs2": ("ElementHexS2", 4)}
 _CHUNK_BUDGET = 4.0e6  # doubles per chunk for the (elements, qp, basis, basis) arrays
@@ -51,7 +57,7 @@ class Discretisation:
         import skfem
 
         if element not in _ELEMENTS:
-            raise ValueError(f"element must be one of {sorted(_ELEMENTS)}, got {element!r}")
+            raise GdfeError(f"element: expected one of {', '.join(map(repr, sorted(_ELEMENTS)))}, got {element!r}")
         name, intorder = _ELEMENTS[element]
         basis = skfem.CellBasis(strip.mesh, getattr(skfem, name)(), intorder=intorder)
         self.element = element

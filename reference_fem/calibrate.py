@@ -25,9 +25,10 @@ import time
 
 import numpy as np
 
-from . import _validate as v
-from .material import Material
-from .timoshenko import timoshenko_curvature
+from gdfe import _validation as v
+from gdfe._validation import GdfeError
+from .material import BilayerMaterial
+from gdfe.timoshenko import timoshenko_curvature
 
 __all__ = ["TableFit", "unit_angles", "fit_to_table", "DEFAULT_RATIOS"]
 
@@ -85,9 +86,9 @@ class TableFit:
     seconds: float
     settings: dict = dataclasses.field(default_factory=dict)
 
-    def material(self) -> Material:
-        """The fitted :class:`Material` (Poisson's ratio as used in the fit)."""
-        return Material.from_ratio(self.E_ratio, self.eigenstrain, nu=self.settings.get("nu", 0.35))
+    def material(self) -> BilayerMaterial:
+        """The fitted :class:`BilayerMaterial` (Poisson's ratio as used in the fit)."""
+        return BilayerMaterial.from_ratio(self.E_ratio, self.eigenstrain, nu=self.settings.get("nu", 0.35))
 
     def as_dict(self) -> dict:
         return {"model": self.model, "E_ratio": self.E_ratio, "eigenstrain": self.eigenstrain,
@@ -110,11 +111,11 @@ def _arrays(L, d, h, alpha=None):
     arrs = [np.broadcast_to(a, (n,)).copy() for a in arrs]
     for name, a in zip(("L", "d", "h"), arrs):
         if not np.all(np.isfinite(a)) or np.any(a <= 0):
-            raise ValueError(f"{name} must hold positive lengths in mm, got {a.tolist()}")
+            raise GdfeError(f"{name}: expected positive lengths in mm, got {a.tolist()}")
     if alpha is not None:
         al = np.atleast_1d(np.asarray(alpha, dtype=float))
         if al.shape != (n,) or not np.all(np.isfinite(al)):
-            raise ValueError(f"alpha must hold {n} finite angles in rad, got {al.tolist()}")
+            raise GdfeError(f"alpha: expected {n} finite angles in rad, got {al.tolist()}")
         arrs.append(al)
     return arrs
 
@@ -149,8 +150,8 @@ def unit_angles(L, d, h, ratios=DEFAULT_RATIOS, *, model="fem", nu=0.35, width=1
     L, d, h = _arrays(L, d, h)
     ratios = np.asarray(ratios, dtype=float)
     if ratios.ndim != 1 or ratios.size < 1 or np.any(~(ratios > 0)):
-        raise ValueError(f"ratios must be positive E_passive/E_active values, got {ratios.tolist()}")
-    v.choice("model", model, {"fem", "timoshenko"})
+        raise GdfeError(f"ratios: expected positive E_passive/E_active values, got {ratios.tolist()}")
+    v.check_choice("model", model, {"fem", "timoshenko"})
     if model == "timoshenko":
         return np.stack([timoshenko_curvature(h, d, 1.0, r, -0.5) * L / 0.5 for r in ratios],
                         axis=1)
@@ -170,7 +171,7 @@ def unit_angles(L, d, h, ratios=DEFAULT_RATIOS, *, model="fem", nu=0.35, width=1
     for i, j in jobs:
         if i not in strips:
             strips = {i: hinge_mesh(L[i], d[i], h[i], width=width, resolution=resolution)}
-        mat = Material.from_ratio(ratios[j], _PROBE, nu=nu)
+        mat = BilayerMaterial.from_ratio(ratios[j], _PROBE, nu=nu)
         res = solve_linear(strips[i], mat)
         if not res.converged:
             raise RuntimeError(f"linear solve failed for test {i} at E_ratio {ratios[j]}")
@@ -234,14 +235,14 @@ def fit_to_table(L, d, h, alpha, *, model="fem", ratios=DEFAULT_RATIOS, nu=0.35,
     t0 = time.perf_counter()
     L, d, h, alpha = _arrays(L, d, h, alpha)
     if L.size < 3:
-        raise ValueError(f"need at least 3 folding tests to fit two parameters, got {L.size}")
+        raise GdfeError(f"tests: expected at least 3 folding tests to fit two parameters, got {L.size}")
     ratios = np.asarray(ratios, dtype=float)
     if ratios.size < 4:
-        raise ValueError(f"ratios must hold at least 4 values, got {ratios.size}")
+        raise GdfeError(f"ratios: expected at least 4 values, got {ratios.size}")
     A = (unit_angles(L, d, h, ratios, model=model, nu=nu, width=width, resolution=resolution,
                      progress=progress) if angles is None else np.asarray(angles, dtype=float))
     if A.shape != (L.size, ratios.size):
-        raise ValueError(f"angles must have shape {(L.size, ratios.size)}, got {A.shape}")
+        raise GdfeError(f"angles: expected shape {(L.size, ratios.size)}, got {A.shape}")
     logr = np.log(ratios)
     spline = CubicSpline(logr, A, axis=1)
     rows = np.arange(L.size)

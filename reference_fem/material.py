@@ -31,9 +31,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from . import _validate as v
+from gdfe import _validation as v
+from gdfe._validation import GdfeError
 
-__all__ = ["Material", "CALIBRATED_E_RATIO", "CALIBRATED_EIGENSTRAIN", "DEFAULT_E_PASSIVE"]
+__all__ = ["BilayerMaterial", "CALIBRATED_E_RATIO", "CALIBRATED_EIGENSTRAIN", "DEFAULT_E_PASSIVE"]
 
 #: ``E_passive / E_active`` fitted to Table 1 by the linear hinge model (``gdfe fem calibrate``,
 #: default resolution, nu = 0.35, 1 mm wide hinges with 2 mm panels).
@@ -45,7 +46,7 @@ DEFAULT_E_PASSIVE = 1500.0
 
 
 @dataclass(frozen=True)
-class Material:
+class BilayerMaterial:
     """Elastic constants of the two layers and the contraction of the active film.
 
     Parameters
@@ -62,7 +63,7 @@ class Material:
 
     Examples
     --------
-    >>> Material(E_active=175.0, E_passive=1500.0, eigenstrain=-0.1).eigenstrain_xyz
+    >>> BilayerMaterial(E_active=175.0, E_passive=1500.0, eigenstrain=-0.1).eigenstrain_xyz
     (-0.1, -0.1, 0.0)
     """
 
@@ -74,31 +75,29 @@ class Material:
     eigenstrain_xyz: tuple = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
-        object.__setattr__(self, "E_active", v.positive("E_active", self.E_active))
-        object.__setattr__(self, "E_passive", v.positive("E_passive", self.E_passive))
-        object.__setattr__(self, "nu_active", v.poisson("nu_active", self.nu_active))
-        object.__setattr__(self, "nu_passive", v.poisson("nu_passive", self.nu_passive))
+        object.__setattr__(self, "E_active", v.check_positive("E_active", self.E_active))
+        object.__setattr__(self, "E_passive", v.check_positive("E_passive", self.E_passive))
+        object.__setattr__(self, "nu_active", v.check_poisson("nu_active", self.nu_active))
+        object.__setattr__(self, "nu_passive", v.check_poisson("nu_passive", self.nu_passive))
         eps = self.eigenstrain
         if isinstance(eps, (list, tuple)) or getattr(eps, "shape", None) == (3,):
             if len(eps) != 3:
-                raise ValueError(
-                    f"eigenstrain must be a number or a triple (xx, yy, zz), got {eps!r}"
-                )
-            xyz = tuple(v.eigenstrain(f"eigenstrain[{i}]", e) for i, e in enumerate(eps))
+                raise GdfeError(f"eigenstrain: expected a number or a triple (xx, yy, zz), got {eps!r}")
+            xyz = tuple(v.check_number(f"eigenstrain[{i}]", e, minimum=-1.0, include_minimum=False, what="a strain > -1 (a free stretch 1 + strain > 0)") for i, e in enumerate(eps))
             object.__setattr__(self, "eigenstrain", xyz)
         else:
-            e = v.eigenstrain("eigenstrain", eps)
+            e = v.check_number("eigenstrain", eps, minimum=-1.0, include_minimum=False, what="a strain > -1 (a free stretch 1 + strain > 0)")
             object.__setattr__(self, "eigenstrain", e)
             xyz = (e, e, 0.0)
         object.__setattr__(self, "eigenstrain_xyz", xyz)
 
     @classmethod
     def from_ratio(cls, E_ratio: float, eigenstrain, *, E_passive: float = DEFAULT_E_PASSIVE,
-                   nu: float = 0.35) -> "Material":
-        """Material with ``E_active = E_passive / E_ratio`` and one Poisson's ratio for both layers."""
-        E_ratio = v.positive("E_ratio", E_ratio)
-        E_passive = v.positive("E_passive", E_passive)
-        nu = v.poisson("nu", nu)
+                   nu: float = 0.35) -> "BilayerMaterial":
+        """BilayerMaterial with ``E_active = E_passive / E_ratio`` and one Poisson's ratio for both layers."""
+        E_ratio = v.check_positive("E_ratio", E_ratio)
+        E_passive = v.check_positive("E_passive", E_passive)
+        nu = v.check_poisson("nu", nu)
         return cls(E_active=E_passive / E_ratio, E_passive=E_passive, nu_active=nu, nu_passive=nu,
                    eigenstrain=eigenstrain)
 
@@ -113,14 +112,14 @@ class Material:
         ex, ey, ez = self.eigenstrain_xyz
         return ex == ey and ez == 0.0
 
-    def scaled(self, factor: float) -> "Material":
+    def scaled(self, factor: float) -> "BilayerMaterial":
         """The same material with every eigenstrain component multiplied by ``factor``."""
-        return Material(self.E_active, self.E_passive, self.nu_active, self.nu_passive,
+        return BilayerMaterial(self.E_active, self.E_passive, self.nu_active, self.nu_passive,
                         tuple(factor * e for e in self.eigenstrain_xyz))
 
     def lame(self, which: str) -> tuple[float, float]:
         """Lamé constants ``(lambda, mu)`` [MPa] of the ``"active"`` or ``"passive"`` layer."""
-        v.choice("which", which, {"active", "passive"})
+        v.check_choice("which", which, {"active", "passive"})
         E, nu = ((self.E_active, self.nu_active) if which == "active"
                  else (self.E_passive, self.nu_passive))
         return E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))

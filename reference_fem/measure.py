@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from gdfe._validation import GdfeError
+
 __all__ = ["midline", "midsurface", "tangent_angles", "fold_angle", "curvature", "turning_angle",
            "fit_circle"]
 
@@ -128,10 +130,10 @@ def fold_angle(result, panel_fraction=0.5):
     """
     strip = result.strip
     if strip.meta.get("kind") != "hinge":
-        raise ValueError(f"fold_angle needs a hinge model (hinge_mesh), got kind "
+        raise GdfeError(f"result: fold_angle expected a hinge model (hinge_mesh), got kind "
                          f"{strip.meta.get('kind')!r}; use turning_angle for strips")
     if not 0 < panel_fraction <= 1:
-        raise ValueError(f"panel_fraction must be in (0, 1], got {panel_fraction!r}")
+        raise GdfeError(f"panel_fraction: expected a number in (0, 1], got {panel_fraction!r}")
     e = strip.x_edges
     a_left = _chord_angle(result, e[0], e[0] + panel_fraction * (e[1] - e[0]))
     a_right = _chord_angle(result, e[-1] - panel_fraction * (e[-1] - e[-2]), e[-1])
@@ -173,7 +175,7 @@ def curvature(result, lo=None, hi=None):
     mid, s, theta = tangent_angles(result)
     inside = (mid >= lo - 1e-12) & (mid <= hi + 1e-12)
     if inside.sum() < 2:
-        raise ValueError(f"curvature: fewer than two mid-line pieces in x = [{lo}, {hi}] mm")
+        raise GdfeError(f"curvature: expected two or more mid-line pieces in x = [{lo}, {hi}] mm, got fewer")
     kappa = np.polyfit(s[inside], theta[inside], 1)[0]
     sign = -1.0 if (strip.meta.get("kind") == "hinge"
                     and strip.meta.get("free_face") == "bottom") else 1.0
@@ -198,7 +200,7 @@ def fit_circle(points):
     """
     p = np.asarray(points, dtype=float)
     if p.ndim != 2 or p.shape[1] != 2 or p.shape[0] < 3:
-        raise ValueError(f"points must be a (k, 2) array with k >= 3, got shape {p.shape}")
+        raise GdfeError(f"points: expected a (k, 2) array with k >= 3, got shape {p.shape}")
     shift = p.mean(axis=0)
     q = p - shift
     A = np.column_stack([2 * q, np.ones(len(q))])

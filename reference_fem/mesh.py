@@ -31,7 +31,8 @@ import math
 
 import numpy as np
 
-from . import _validate as v
+from gdfe import _validation as v
+from gdfe._validation import GdfeError
 
 __all__ = ["Segment", "LayeredStrip", "layered_strip", "hinge_mesh", "strip_mesh",
            "HINGE_RESOLUTIONS", "BOTTOM_COAT", "FILM", "TOP_COAT"]
@@ -58,8 +59,8 @@ class Segment:
     coating: str = "both"
 
     def __post_init__(self):
-        object.__setattr__(self, "length", v.positive("segment length", self.length))
-        v.choice("coating", self.coating, set(_COATINGS))
+        object.__setattr__(self, "length", v.check_positive("segment length", self.length))
+        v.check_choice("coating", self.coating, set(_COATINGS))
 
 
 @dataclasses.dataclass
@@ -159,18 +160,18 @@ def layered_strip(segments, h, d, *, width=1.0, element_size=0.25, layers_per_pl
 
     segs = tuple(s if isinstance(s, Segment) else Segment(*s) for s in segments)
     if not segs:
-        raise ValueError("segments must hold at least one segment, got none")
-    h = v.positive("h", h)
-    d = v.positive("d", d)
-    width = v.positive("width", width)
-    size = v.positive("element_size", element_size)
-    nply = v.positive_int("layers_per_ply", layers_per_ply, minimum=2)
+        raise GdfeError("segments: expected at least one segment, got none")
+    h = v.check_positive("h", h)
+    d = v.check_positive("d", d)
+    width = v.check_positive("width", width)
+    size = v.check_positive("element_size", element_size)
+    nply = v.check_int("layers_per_ply", layers_per_ply, minimum=2)
     mirror = all(a.length == b.length and a.coating == b.coating for a, b in zip(segs, segs[::-1]))
     if symmetry is None:
         symmetry = "xy" if mirror else "y"
-    v.choice("symmetry", symmetry, {"xy", "y"})
+    v.check_choice("symmetry", symmetry, {"xy", "y"})
     if symmetry == "xy" and not mirror:
-        raise ValueError("symmetry='xy' needs segments that are mirror-symmetric about the middle, "
+        raise GdfeError("symmetry: 'xy' expected segments that are mirror-symmetric about the middle, "
                          f"got {[(s.length, s.coating) for s in segs]}")
 
     lengths = np.array([s.length for s in segs])
@@ -179,7 +180,7 @@ def layered_strip(segments, h, d, *, width=1.0, element_size=0.25, layers_per_pl
     # x nodes: every segment boundary, the middle for the quarter model
     cuts = edges if symmetry == "y" else np.unique(np.concatenate([edges[edges > 0], [0.0]]))
     junctions = [e for i, e in enumerate(edges[1:-1], 1) if segs[i - 1].coating != segs[i].coating]
-    fine = size if junction_size is None else v.positive("junction_size", junction_size)
+    fine = size if junction_size is None else v.check_positive("junction_size", junction_size)
     xs = [np.array([cuts[0]])]
     for a, b in zip(cuts[:-1], cuts[1:]):
         near_a = any(abs(a - e) < 1e-12 for e in junctions)
@@ -190,7 +191,7 @@ def layered_strip(segments, h, d, *, width=1.0, element_size=0.25, layers_per_pl
     y = np.linspace(0.0, 0.5 * width, ny + 1)
     has_bottom = any(_COATINGS[s.coating][0] for s in segs)
     has_top = any(_COATINGS[s.coating][1] for s in segs)
-    ratio = v.positive("z_ratio", z_ratio)
+    ratio = v.check_positive("z_ratio", z_ratio)
     coat = _ply_nodes(nply, ratio)  # 0 at the film, 1 at the outer face
     half = _ply_nodes(math.ceil(nply / 2), ratio)
     film = np.concatenate([0.5 * half, 1.0 - 0.5 * half[-2::-1]])
@@ -271,14 +272,14 @@ def hinge_mesh(length, d, h=0.29, *, panel_length=2.0, width=1.0, free_face="top
     LayeredStrip
         Quarter model (``symmetry="xy"``).
     """
-    length = v.positive("length", length)
-    v.positive("panel_length", panel_length)
-    v.choice("free_face", free_face, {"top", "bottom"})
-    v.choice("resolution", resolution, set(HINGE_RESOLUTIONS))
+    length = v.check_positive("length", length)
+    v.check_positive("panel_length", panel_length)
+    v.check_choice("free_face", free_face, {"top", "bottom"})
+    v.check_choice("resolution", resolution, set(HINGE_RESOLUTIONS))
     preset = HINGE_RESOLUTIONS[resolution]
     if element_size is None:
         element_size = min(preset["size_cap"], length / preset["per_hinge"])
-    element_size = v.positive("element_size", element_size)
+    element_size = v.check_positive("element_size", element_size)
     if junction_size is None:
         junction_size = preset["junction"] * element_size
     if layers_per_ply is None:
@@ -319,7 +320,7 @@ def strip_mesh(length, h, d, *, width=1.0, free_face="top", element_size=0.25,
     LayeredStrip
         Quarter model (``symmetry="xy"``).
     """
-    v.choice("free_face", free_face, {"top", "bottom"})
+    v.check_choice("free_face", free_face, {"top", "bottom"})
     coat = "bottom" if free_face == "top" else "top"
     return layered_strip([Segment(length, coat)], h, d, width=width, element_size=element_size,
                          layers_per_ply=layers_per_ply, symmetry="xy",

@@ -20,9 +20,10 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from . import _validate as v
+from gdfe import _validation as v
+from gdfe._validation import GdfeTypeError
 from ._kernel import Discretisation, element_fields, linear_system, neohookean_state, svk_state
-from .material import Material
+from .material import BilayerMaterial
 from .mesh import LayeredStrip
 
 __all__ = ["FemResult", "solve_linear", "solve_nonlinear"]
@@ -40,14 +41,15 @@ class FemResult:
     ----------
     strip : LayeredStrip
         The meshed model.
-    material : Material
+    material : BilayerMaterial
         Materials and the full eigenstrain.
     points : (N, 3) float array [mm]
         Reference positions of the scalar degrees of freedom.
     displacement : (N, 3) float array [mm]
         Displacement at ``points``.
     nonlinear : bool
-        Geometrically nonlinear (SVK, total Lagrangian) or small-strain solution.
+        Geometrically nonlinear (total Lagrangian, neo-Hookean or St Venant-Kirchhoff: see
+        :func:`solve_nonlinear`'s ``model``) or small-strain solution.
     converged : bool
         True when the solve reached the full eigenstrain with the residual below tolerance.
     iterations : int
@@ -67,7 +69,7 @@ class FemResult:
     """
 
     strip: LayeredStrip
-    material: Material
+    material: BilayerMaterial
     points: np.ndarray
     displacement: np.ndarray
     nonlinear: bool
@@ -94,10 +96,10 @@ class FemResult:
 
 def _check(strip, material):
     if not isinstance(strip, LayeredStrip):
-        raise TypeError(f"strip must be a LayeredStrip (see hinge_mesh, strip_mesh), got "
+        raise GdfeTypeError(f"strip: expected a LayeredStrip (see hinge_mesh, strip_mesh), got "
                         f"{type(strip).__name__}")
-    if not isinstance(material, Material):
-        raise TypeError(f"material must be a reference_fem.Material, got {type(material).__name__}")
+    if not isinstance(material, BilayerMaterial):
+        raise GdfeTypeError(f"material: expected a reference_fem.BilayerMaterial, got {type(material).__name__}")
 
 
 def constrained_dofs(strip: LayeredStrip, X: np.ndarray) -> np.ndarray:
@@ -120,14 +122,14 @@ def _solve(K, rhs):
     return spla.spsolve(K.tocsc(), rhs, permc_spec="MMD_AT_PLUS_A")
 
 
-def solve_linear(strip: LayeredStrip, material: Material, *, element: str = "hex2") -> FemResult:
+def solve_linear(strip: LayeredStrip, material: BilayerMaterial, *, element: str = "hex2") -> FemResult:
     """Small-strain solve with the eigenstrain as load (stress from the elastic strain only).
 
     Parameters
     ----------
     strip : LayeredStrip
         Meshed model (:func:`~reference_fem.hinge_mesh`, :func:`~reference_fem.strip_mesh`, ...).
-    material : Material
+    material : BilayerMaterial
         Elastic constants and eigenstrain.
     element : {"hex2", "hexs2", "hex1"}
         Element type; ``"hex2"`` (27-node triquadratic) is free of bending locking.
@@ -155,7 +157,7 @@ def solve_linear(strip: LayeredStrip, material: Material, *, element: str = "hex
                      dofs=disc.ndofs, element=element)
 
 
-def solve_nonlinear(strip: LayeredStrip, material: Material, *, element: str = "hex2",
+def solve_nonlinear(strip: LayeredStrip, material: BilayerMaterial, *, element: str = "hex2",
                     model: str = "neohookean", steps: int = 4, tol: float = 1e-8,
                     max_iter: int = 15, min_step: float = 1e-3) -> FemResult:
     """Geometrically nonlinear solve: total Lagrangian hyperelasticity with ``F = F_e F*``.
@@ -170,7 +172,7 @@ def solve_nonlinear(strip: LayeredStrip, material: Material, *, element: str = "
     ----------
     strip : LayeredStrip
         Meshed model.
-    material : Material
+    material : BilayerMaterial
         Elastic constants and eigenstrain (the full load).
     element : {"hex2", "hexs2", "hex1"}
         Element type.
@@ -195,11 +197,11 @@ def solve_nonlinear(strip: LayeredStrip, material: Material, *, element: str = "
         load stepping gave up.
     """
     _check(strip, material)
-    steps = v.positive_int("steps", steps)
-    tol = v.positive("tol", tol)
-    max_iter = v.positive_int("max_iter", max_iter)
-    min_step = v.positive("min_step", min_step)
-    v.choice("model", model, set(_STATES))
+    steps = v.check_int("steps", steps)
+    tol = v.check_positive("tol", tol)
+    max_iter = v.check_int("max_iter", max_iter)
+    min_step = v.check_positive("min_step", min_step)
+    v.check_choice("model", model, set(_STATES))
     t0 = time.perf_counter()
     disc = Discretisation(strip, element)
     fixed = constrained_dofs(strip, disc.X)

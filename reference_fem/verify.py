@@ -24,11 +24,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from .material import Material
+from gdfe._validation import GdfeError
+
+from .material import BilayerMaterial
 from .measure import curvature, fit_circle, midline, turning_angle
 from .mesh import strip_mesh
 from .solve import solve_linear, solve_nonlinear
-from .timoshenko import timoshenko_curvature
+from gdfe.timoshenko import timoshenko_curvature
 
 __all__ = ["timoshenko_check", "arc_check", "TIMOSHENKO_MESHES"]
 
@@ -67,8 +69,8 @@ def timoshenko_check(element="hex1", meshes=None, *, length=6.0, width=1.0, h=0.
         meshes = TIMOSHENKO_MESHES.get(element, TIMOSHENKO_MESHES["hex2"])
     meshes = list(meshes)
     if len(meshes) < 3:
-        raise ValueError(f"meshes must hold at least 3 refinements, got {len(meshes)}")
-    mat = Material(E_active=3000.0, E_passive=E_ratio * 3000.0, nu_active=0.0, nu_passive=0.0,
+        raise GdfeError(f"meshes: expected at least 3 refinements, got {len(meshes)}")
+    mat = BilayerMaterial(E_active=3000.0, E_passive=E_ratio * 3000.0, nu_active=0.0, nu_passive=0.0,
                    eigenstrain=-1e-3)
     kT = timoshenko_curvature(h, d, mat.E_active, mat.E_passive, mat.eigenstrain)
     rows = []
@@ -102,7 +104,7 @@ def arc_check(eigenstrain=-0.05, turn=2.5, *, h=0.29, d=0.33, width=0.5, element
         ``rel_error``, ``circle_rms_over_radius`` (how far the mid-line is from its best-fit
         circle), ``converged``, ``iterations``, ``seconds``, ``dofs``, ``length_mm``.
     """
-    mat = Material(E_active=3000.0, E_passive=3000.0, nu_active=0.0, nu_passive=0.0,
+    mat = BilayerMaterial(E_active=3000.0, E_passive=3000.0, nu_active=0.0, nu_passive=0.0,
                    eigenstrain=(eigenstrain, 0.0, 0.0))
     kT = timoshenko_curvature(h, d, mat.E_active, mat.E_passive, eigenstrain)
     length = turn / kT

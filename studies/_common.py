@@ -19,13 +19,15 @@ import math
 import sys
 from pathlib import Path
 
+from gdfe._plotting import pyplot  # noqa: F401  (the studies take pyplot from here)
+from gdfe._validation import GdfeError, check_choice
+
 RESOLUTIONS = ("coarse", "default", "fine")
 
 
 def check_resolution(resolution):
-    if resolution not in RESOLUTIONS:
-        raise ValueError(f"resolution: expected one of {', '.join(RESOLUTIONS)}, got {resolution!r}")
-    return resolution
+    """``resolution`` if it is one of :data:`RESOLUTIONS`."""
+    return check_choice("resolution", resolution, RESOLUTIONS)
 
 
 def n_jobs(resolution):
@@ -77,7 +79,7 @@ def headline(name, ours, paper=None, tol=None, kind="abs", expect=True, unit="",
         holds = ours_f == float(paper)
         tol_text = "ours == paper"
     else:
-        raise ValueError(f"kind: expected abs, rel, le, ge or eq, got {kind!r}")
+        check_choice("kind", kind, ("abs", "rel", "le", "ge", "eq"))
     if not math.isfinite(ours_f):
         holds = False
     if unit:
@@ -89,14 +91,28 @@ def headline(name, ours, paper=None, tol=None, kind="abs", expect=True, unit="",
             "expect": bool(expect), "holds": bool(holds), "passed": bool(holds) == bool(expect), "note": note}
 
 
-def pyplot():
-    """matplotlib's pyplot with the non-interactive Agg backend."""
-    import matplotlib
+def median_time(fn, repeats):
+    """Run ``fn()`` ``repeats`` times; return the median seconds, every time, and the last result.
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    The one timing helper of the studies and the benchmark (wall clock, ``time.perf_counter``).
+    """
+    import statistics
+    import time
 
-    return plt
+    times, out = [], None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), times, out
+
+
+def error_against_finest(rows, key="alpha_rad", out="error_rad"):
+    """Give every level of a refinement ``rows[k][out] = |rows[k][key] - rows[-1][key]|``."""
+    ref = rows[-1][key]
+    for r in rows:
+        r[out] = abs(r[key] - ref)
+    return rows
 
 
 def finish(result, out, plot):
@@ -148,7 +164,11 @@ def study_main(module, argv=None):
     p.add_argument("--json", action="store_true", help="print the numbers as JSON")
     args = p.parse_args(argv)
     out = args.out if args.out is not None else Path("out") / module.NAME
-    return run_and_print(module, args.resolution, out, args.json)
+    try:
+        return run_and_print(module, args.resolution, out, args.json)
+    except GdfeError as exc:  # a user error: one line; anything else is a bug and keeps its traceback
+        print(f"{p.prog}: error: {exc}", file=sys.stderr)
+        return 1
 
 
 def main_of(module_name):
@@ -166,9 +186,9 @@ def main_of(module_name):
 def run_and_print(module, resolution, out, as_json):
     result = module.run(resolution=resolution, out=out)
     if as_json:
-        from gdfe.cli import _json_default
+        from gdfe.io import json_default
 
-        print(json.dumps(public(result), indent=2, default=_json_default))
+        print(json.dumps(public(result), indent=2, default=json_default))
     else:
         print(format_headlines(result))
         if out is not None:

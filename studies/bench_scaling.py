@@ -2,7 +2,7 @@
 
 Not a figure of the paper: the paper claims GDFE is simpler and faster than full FEM
 (Sec. 1, Sec. 3.1: the n x n system "can be prefactorized ... only backward
-substitutions"); this study puts numbers on it with :func:`gdfe.bench.run` and plots
+substitutions"); this study puts numbers on it with :func:`studies.bench.run` and plots
 seconds to convergence against the number of elements for the PNG-mask sheets (10^3 to
 10^5 cells, 10^6 at ``resolution="fine"``), the L = 1.6 mm hinge at five GDFE
 resolutions and the same hinge with the nonlinear FEM at four mesh levels.
@@ -17,8 +17,9 @@ import argparse
 import sys
 from pathlib import Path
 
-from gdfe import bench
+from gdfe._validation import check_choice
 from gdfe.io import write_text
+from studies import bench
 
 #: Sheet sizes [cells] per resolution; "coarse" is the benchmark's --quick mode.
 SIZES = {"coarse": None, "default": (1_000, 10_000, 100_000), "fine": (1_000, 10_000, 100_000, 1_000_000)}
@@ -26,8 +27,7 @@ SIZES = {"coarse": None, "default": (1_000, 10_000, 100_000), "fine": (1_000, 10
 
 def run(resolution="default", out=None):
     """Run the benchmark at ``resolution``; write its files into ``out``; return its numbers."""
-    if resolution not in SIZES:
-        raise ValueError(f"resolution: expected one of {', '.join(SIZES)}, got {resolution!r}")
+    check_choice("resolution", resolution, SIZES)
     result = bench.run(quick=resolution == "coarse", sizes=SIZES[resolution], out=out)
     if out is not None:
         write_text(Path(out) / "bench.txt", bench.format_table(result) + "\n")

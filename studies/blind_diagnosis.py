@@ -49,6 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gdfe._validation import GdfeError
 from gdfe.io import write_text
 from studies._common import check_resolution, finish, headline, pyplot, study_main
 
@@ -104,7 +105,7 @@ def design_points(kind, rng):
         t = gdfe.load_folding_tests(gdfe.TABLE1)
         return t.L.copy(), t.d.copy(), t.h.copy()
     if kind != "random":
-        raise ValueError(f"kind: expected one of {', '.join(DESIGN_SETS)}, got {kind!r}")
+        raise GdfeError(f"kind: expected one of {', '.join(DESIGN_SETS)}, got {kind!r}")
     L = rng.uniform(1.5, 6.0, N_RANDOM)
     d = np.exp(rng.uniform(np.log(0.1), np.log(0.5), N_RANDOM))
     h = rng.uniform(0.2, 0.4, N_RANDOM)
@@ -309,7 +310,7 @@ def fem_junction(cases=((0.15, 0.29, 3.0), (0.4, 0.29, 3.0), (0.15, 0.2, 0.5), (
         ``d_mm, h_mm, E_ratio, kappa_over_timoshenko, lambda_mm, max_line_error`` (the
         largest deviation of the FEM from the line, per unit contraction).
     """
-    from gdfe.diagnosis import timoshenko_curvature
+    from gdfe.timoshenko import bilayer_curvature
     from reference_fem import unit_angles
 
     Ls = np.asarray(lengths, float)
@@ -318,7 +319,7 @@ def fem_junction(cases=((0.15, 0.29, 3.0), (0.4, 0.29, 3.0), (0.15, 0.2, 0.5), (
         a = unit_angles(Ls, np.full(Ls.size, d), np.full(Ls.size, h), ratios=[r], resolution=resolution)[:, 0]
         k, b = np.polyfit(Ls, a, 1)
         out.append({"d_mm": d, "h_mm": h, "E_ratio": r,
-                    "kappa_over_timoshenko": float(k / timoshenko_curvature(h, d, r, 1.0)),
+                    "kappa_over_timoshenko": float(k / bilayer_curvature(h, d, r, 1.0)),
                     "lambda_mm": float(b / k), "max_line_error": float(np.abs(a - (k * Ls + b)).max())})
     return out
 

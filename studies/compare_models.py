@@ -25,7 +25,6 @@ Run ``python -m studies.compare_models [--resolution coarse|default|fine] [--out
 from __future__ import annotations
 
 import logging
-import statistics
 import time
 from pathlib import Path
 
@@ -33,20 +32,16 @@ import numpy as np
 
 import gdfe
 import reference_fem as rf
+from gdfe.paper import FIG6_D, FIG6_LENGTHS, FIG6_SIMULATED, H
 # FEM mesh levels of the runtime study, the same as the benchmark's: (size cap [mm], elements
 # per hinge length, layers per ply, z growth, junction element / size)
-from gdfe.bench import FEM_LEVELS
-from studies._common import finish, headline, main_of, pyplot
-# fold angles GDFE gave in the paper's Figure 6 [rad]
-from studies.fig06_angle_validation import PAPER_SIM as FIG6_PAPER_GDFE
+from studies.bench import FEM_LEVELS
+from studies._common import check_resolution, error_against_finest, finish, headline, main_of, median_time, pyplot
 
 log = logging.getLogger(__name__)
 
 NAME = "compare_models"
 
-H = 0.29
-FIG6_D = 0.33
-FIG6_LENGTHS = (1.0, 1.6, 2.6)
 WIDTH = 1.0
 PANEL = 2.0
 #: The freeform strip: (length [mm], passive coat) from left to right, coat thickness FREEFORM_D.
@@ -87,7 +82,7 @@ def _panel(L, cells):
 
 def _fem(L, d, preset, nonlinear, material=None, cells=16):
     strip = rf.hinge_mesh(L, d, H, width=WIDTH, panel_length=_panel(L, cells), resolution=preset)
-    mat = rf.Material() if material is None else material
+    mat = rf.BilayerMaterial() if material is None else material
     res = rf.solve_nonlinear(strip, mat) if nonlinear else rf.solve_linear(strip, mat)
     return res
 
@@ -116,7 +111,7 @@ def _fem_freeform(preset):
                              junction_size=size * rf.HINGE_RESOLUTIONS[preset]["junction"],
                              z_ratio=rf.HINGE_RESOLUTIONS[preset]["z_ratio"],
                              meta={"kind": "freeform"})
-    return rf.solve_nonlinear(strip, rf.Material())
+    return rf.solve_nonlinear(strip, rf.BilayerMaterial())
 
 
 # ---------------------------------------------------------------------------------------------
@@ -238,7 +233,7 @@ def _angle_table(cfg):
         row["fem_nonlinear_converged"] = nl.converged
         row["fem_nonlinear_iterations"] = nl.iterations
         if source == "fig6":
-            row["paper_gdfe_rad"] = FIG6_PAPER_GDFE[FIG6_LENGTHS.index(L)]
+            row["paper_gdfe_rad"] = FIG6_SIMULATED[FIG6_LENGTHS.index(L)]
             fem_nl[L] = nl
         rows.append(row)
     summary = {}
@@ -277,18 +272,9 @@ def _shapes(cfg, fem_nl, refit_K):
     return rows, curves
 
 
-def _timed(fn, repeats):
-    times, out = [], None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times), times, out
-
-
 def _runtime(cfg, R_gdfe):
     L, d = RUNTIME_HINGE
-    mat = rf.Material()
+    mat = rf.BilayerMaterial()
     models = {}
 
     def gdfe_run(n):
@@ -312,13 +298,10 @@ def _runtime(cfg, R_gdfe):
         rows = []
         for i, (label, fn) in enumerate(_progress(plan, name)):
             finest = i == len(plan) - 1
-            med, times, (alpha, ok, dofs) = _timed(fn, 1 if finest else cfg["repeats"])
+            med, times, (alpha, ok, dofs) = median_time(fn, 1 if finest else cfg["repeats"])
             rows.append({"resolution": label, "dofs": int(dofs), "seconds_median": med,
                          "seconds_all": times, "alpha_rad": alpha, "converged": bool(ok)})
-        ref = rows[-1]["alpha_rad"]
-        for r in rows:
-            r["error_vs_finest_rad"] = abs(r["alpha_rad"] - ref)
-        models[name] = rows
+        models[name] = error_against_finest(rows, out="error_vs_finest_rad")
     return {"hinge": {"L_mm": L, "d_mm": d, "h_mm": H, "gdfe_R": R_gdfe},
             "fem_levels": [dict(zip(("size_cap_mm", "per_hinge", "layers_per_ply", "z_ratio",
                                      "junction_fraction"), lv)) for lv in FEM_LEVELS],
@@ -344,15 +327,14 @@ def run(resolution="default", out=None):
         ``calibration``, ``shapes`` (per case), ``runtime`` (per model and resolution),
         ``headlines``, ``summary`` and ``converged`` (the shared study plumbing).
     """
-    if resolution not in SETTINGS:
-        raise ValueError(f"resolution must be one of {sorted(SETTINGS)}, got {resolution!r}")
+    check_resolution(resolution)
     cfg = SETTINGS[resolution]
     t0 = time.perf_counter()
     rows, summary, cal, fem_nl = _angle_table(cfg)
     shapes, curves = _shapes(cfg, fem_nl, cal["refit_K"])
     R_run = next(s["gdfe_fitted_R"] for s in shapes if s["case"] == f"hinge L={RUNTIME_HINGE[0]:g}")
     runtime = _runtime(cfg, R_run)
-    mat = rf.Material()
+    mat = rf.BilayerMaterial()
     converged = (all(r["fem_nonlinear_converged"] for r in rows)
                  and all(r[k] is not None for r in rows for k in ("gdfe_refit_rad", "fem_nonlinear_rad"))
                  and all(s[f"gdfe_{m}_converged"] and s["fem_nonlinear_converged"]

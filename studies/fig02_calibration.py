@@ -4,7 +4,7 @@ The paper plots the 18 folding tests of Table 1 as fold angle against
 ``sqrt(h/d^3) L``, fits a line and reports ``K = 0.3706`` with a coefficient of
 determination "around 0.8". This study refits Eq. 1 three ways (``eq1``: the printed
 regressor; ``eq1-d1``: ``sqrt(h/d) L``; ``power``: the exponent of ``d`` fitted; see
-:mod:`studies.calibration_models`), with bootstrap intervals and residuals, and shows
+:func:`gdfe.fit_reading`), with bootstrap intervals and residuals, and shows
 what each reading means for Eq. 3 and for the ``R = 0.7`` (d = 0.33 mm) of Figure 6.
 
 Run ``python -m studies.fig02_calibration [--out DIR] [--resolution R] [--json]`` or
@@ -15,34 +15,34 @@ from __future__ import annotations
 
 import numpy as np
 
+from gdfe.calibration import READINGS, CalibrationFit, fit_quality, fit_reading, regressor
+from gdfe.paper import FIG6_D as D_FIG6
+from gdfe.paper import FIG6_LENGTHS as FIG6_L
+from gdfe.paper import FIG6_SIMULATED as PAPER_SIM
+from gdfe.paper import H
+from gdfe.paper import K as PAPER_K
+from gdfe.paper import TABLE1_R2 as PAPER_R2
 from studies._common import check_resolution, finish, headline, main_of, pyplot
-from studies.fig06_angle_validation import PAPER_SIM
 
 NAME = "fig02"
-PAPER_K = 0.3706
-PAPER_R2 = 0.8
-D_FIG6 = 0.33
-H = 0.29
-FIG6_L = (1.0, 1.6, 2.6)
 BOOT = {"coarse": 500, "default": 2000, "fine": 10000}
 
 
 def run(resolution="default", out=None, data=None):
     """Fit the readings of Eq. 1 to Table 1 (or ``data``, a CSV) and compare with the paper."""
     import gdfe
-    from studies import calibration_models as cm
 
     check_resolution(resolution)
     tests = gdfe.load_folding_tests(data if data is not None else gdfe.TABLE1)
     L, d, h, y = tests.L, tests.d, tests.h, tests.alpha
     n_boot = BOOT[resolution]
-    fits = {m: cm.fit(tests, m, n_boot=n_boot) for m in cm.MODELS}
+    fits = {m: fit_reading(tests, m, n_boot=n_boot) for m in READINGS}
     core = gdfe.Calibration.fit(tests, n_boot=n_boot)
 
     # the paper's reading: K = 0.3706 applied to the printed regressor
-    x3 = cm.regressor("eq1", L, d, h)
+    x3 = regressor("eq1", L, d, h)
     pred_paper = PAPER_K * x3
-    r2_paper, _, rmse_paper, _ = cm.quality(y, pred_paper)
+    r2_paper, _, rmse_paper, _ = fit_quality(y, pred_paper)
     paper_on_data = {"K": PAPER_K, "r2": r2_paper, "rmse": rmse_paper, "alpha_pred": pred_paper.tolist(),
                      "max_alpha_pred": float(pred_paper.max())}
     cal = gdfe.Calibration(K=PAPER_K, h=H)
@@ -53,19 +53,19 @@ def run(resolution="default", out=None, data=None):
     # with an intercept (the paper says "a best-fit straight line")
     intercept = {}
     for m in ("eq1", "eq1-d1"):
-        x = cm.regressor(m, L, d, h)
+        x = regressor(m, L, d, h)
         slope, icpt = np.polyfit(x, y, 1)
         intercept[m] = {"slope": float(slope), "intercept": float(icpt),
-                        "r2": cm.quality(y, slope * x + icpt)[0]}
+                        "r2": fit_quality(y, slope * x + icpt)[0]}
 
     # Eq. 2 applied to every test: the contraction ratio each test implies
     R_tests = 1.0 - y * h / L
 
     readings = []
     rows = [("paper (K = 0.3706, d^3)", "eq1", PAPER_K, 1.5)] + [
-        (f"refit {m}", m, fits[m].K, fits[m].p) for m in cm.MODELS]
+        (f"refit {m}", m, fits[m].K, fits[m].p) for m in READINGS]
     for label, m, K, p in rows:
-        f = cm.ModelFit.reading(m, K, p)
+        f = CalibrationFit.reading(m, K, p)
         R = float(f.ratio(D_FIG6, H))
         readings.append({"reading": label, "model": m, "K": K, "p": p, "R_d033": R,
                          "fig6_alpha": [float((1 - R) * Lf / H) for Lf in FIG6_L],
@@ -132,7 +132,6 @@ def run(resolution="default", out=None, data=None):
 
 
 def plot(result, out):
-    from studies import calibration_models as cm
     from studies._draw import save_figure
 
     plt = pyplot()
@@ -142,7 +141,7 @@ def plot(result, out):
     fig, ax = plt.subplots(2, 2, figsize=(11, 8.5))
     # (a) the paper's axes
     a = ax[0, 0]
-    x3 = cm.regressor("eq1", L, d, h)
+    x3 = regressor("eq1", L, d, h)
     sc = a.scatter(x3, y, c=d, cmap="viridis", zorder=3)
     xs = np.linspace(0, x3.max() * 1.05, 50)
     a.plot(xs, fits["eq1"]["K"] * xs, "C1-", label=f"fit: K = {fits['eq1']['K']:.4f}, R² = {fits['eq1']['r2']:.2f}")
@@ -153,7 +152,7 @@ def plot(result, out):
     fig.colorbar(sc, ax=a, label="d [mm]")
     # (b) d^1 regressor
     a = ax[0, 1]
-    x1 = cm.regressor("eq1-d1", L, d, h)
+    x1 = regressor("eq1-d1", L, d, h)
     a.scatter(x1, y, c=d, cmap="viridis", zorder=3)
     xs = np.linspace(0, x1.max() * 1.05, 50)
     a.plot(xs, fits["eq1-d1"]["K"] * xs, "C1-",
@@ -165,7 +164,7 @@ def plot(result, out):
     a = ax[1, 0]
     order = np.argsort(d)
     w = 0.27
-    for k, m in enumerate(cm.MODELS):
+    for k, m in enumerate(READINGS):
         a.bar(np.arange(d.size) + (k - 1) * w, np.array(fits[m]["residuals"])[order], w,
               label=f"{m} (rmse {fits[m]['rmse']:.3f} rad)")
     a.axhline(0, color="k", lw=0.7)
@@ -176,7 +175,7 @@ def plot(result, out):
     a = ax[1, 1]
     ds = np.linspace(0.08, 0.55, 300)
     for r in result["readings"]:
-        f = cm.ModelFit.reading(r["model"], r["K"], r["p"])
+        f = CalibrationFit.reading(r["model"], r["K"], r["p"])
         a.plot(ds, f.ratio(ds, H), label=f"{r['reading']}: R(0.33) = {r['R_d033']:.3f}")
     a.scatter(d, result["R_from_each_test"], c="k", s=14, zorder=3, label="each test by Eq. 2: 1 − αh/L")
     a.axvline(D_FIG6, color="0.5", ls=":")

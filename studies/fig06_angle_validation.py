@@ -17,15 +17,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from gdfe import paper
 from studies._common import check_resolution, finish, headline, n_jobs, main_of, pyplot
 
 NAME = "fig06"
-LENGTHS = (1.0, 1.6, 2.6)
-D = 0.33
-H = 0.29
-PAPER_SIM = (1.04, 1.66, 2.70)
-PAPER_EQ1 = (1.05, 1.68, 2.73)
-PAPER_MAX_ERROR = 0.03
+LENGTHS = paper.FIG6_LENGTHS
+D = paper.FIG6_D
+H = paper.H
+PAPER_SIM = paper.FIG6_SIMULATED
+PAPER_EQ1 = paper.FIG6_EQ1
+PAPER_MAX_ERROR = paper.FIG6_MAX_ERROR
 CELLS = {"coarse": 16, "default": 16, "fine": 32}
 WIDTHS = (0.25, 0.5, 1.0, 2.0)
 

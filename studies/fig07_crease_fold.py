@@ -32,11 +32,12 @@ import math
 
 import numpy as np
 
+from gdfe import paper
 from studies._common import check_resolution, finish, headline, n_jobs, main_of, pyplot
 
 NAME = "fig07"
-H = 0.29
-D = 0.33
+H = paper.H
+D = paper.FIG6_D
 N_HINGES = 8
 PANEL = 2.5
 TUBE_WIDTH = 2.0

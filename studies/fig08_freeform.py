@@ -37,11 +37,13 @@ from pathlib import Path
 
 import numpy as np
 
+from gdfe import paper
+from gdfe._validation import GdfeError
 from studies._common import check_resolution, finish, headline, n_jobs, main_of, pyplot
 
 NAME = "fig08"
-H = 0.29
-D = 0.33
+H = paper.H
+D = paper.FIG6_D
 SIZE = 8.0
 PIXEL = {"coarse": 0.5, "default": 0.25, "fine": 0.125}
 PERIOD = 2.0  # mm, period of the stripes and rings
@@ -74,7 +76,7 @@ def masks(pattern, n, pixel):
         top = np.mod(X, PERIOD) >= FREE  # free lines along y: bend about y, towards +z
         bottom = np.mod(Y, PERIOD) >= FREE  # free lines along x: bend about x, towards -z
     else:
-        raise ValueError(f"pattern: expected one of {', '.join(PATTERNS)}, got {pattern!r}")
+        raise GdfeError(f"pattern: expected one of {', '.join(PATTERNS)}, got {pattern!r}")
     return top, bottom, film
 
 

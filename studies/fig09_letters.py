@@ -24,11 +24,12 @@ import math
 
 import numpy as np
 
+from gdfe import paper
 from studies._common import check_resolution, finish, headline, n_jobs, main_of, pyplot
 
 NAME = "fig09"
-H = 0.29
-D = 0.33
+H = paper.H
+D = paper.FIG6_D
 WIDTH = 0.5
 CELL = {"coarse": 0.25, "default": 0.125, "fine": 0.0625}
 TOL_MAX_DEV = 0.5  # mm: regression bound on the largest deviation of any letter

@@ -29,11 +29,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from gdfe import paper
 from studies._common import check_resolution, finish, headline, n_jobs, main_of, pyplot
 
 NAME = "fig10"
-H = 0.29
-D = 0.33
+H = paper.H
+D = paper.FIG6_D
 WIDTH = 0.5
 PENALTIES = (1.0, 0.3, 0.1)
 PAPER_M = (2, 5, 7)
@@ -92,7 +93,7 @@ def run(resolution="default", out=None):
         fits[pen] = fit
         curve = fit.curve(ds=0.02)
         cmp_free = inv.compare_curves(curve, P)  # best rigid motion
-        d_fixed = max(inv._closest_on_polyline(P, curve)[0].max(), inv._closest_on_polyline(curve, P)[0].max())
+        d_fixed = max(inv.closest_on_polyline(P, curve)[0].max(), inv.closest_on_polyline(curve, P)[0].max())
         levels.append({
             "penalty": pen, "m": fit.segmentation.m, "m_length_weighted": fitw.segmentation.m,
             "cost": fit.segmentation.cost, "eps": fit.segmentation.eps.tolist(),

@@ -25,10 +25,11 @@ import math
 
 import numpy as np
 
+from gdfe import paper
 from studies._common import check_resolution, finish, headline, n_jobs, main_of, pyplot
 
 NAME = "fig11"
-H = 0.29
+H = paper.H
 RADIUS = 5.0
 WIDTH = 0.5
 GRID = {

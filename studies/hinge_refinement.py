@@ -20,16 +20,17 @@ from pathlib import Path
 import numpy as np
 
 import gdfe
+from gdfe import paper
+from gdfe._validation import check_choice
 
-LENGTHS = (1.0, 1.6, 2.6)
-D = 0.33
+LENGTHS = paper.FIG6_LENGTHS
+D = paper.FIG6_D
 CELLS = {"coarse": (4, 8, 16), "default": (8, 16, 32), "fine": (8, 16, 32, 64)}
 
 
 def run(resolution="default", out=None):
     """Simulate every hinge at every resolution; return the angles, errors and rates."""
-    if resolution not in CELLS:
-        raise ValueError(f"resolution: expected one of {sorted(CELLS)}, got {resolution!r}")
+    check_choice("resolution", resolution, CELLS)
     cal = gdfe.Calibration()
     rows = []
     for iso in (1.0, 0.0):

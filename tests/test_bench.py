@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 
 import gdfe
-from gdfe.bench import format_table, mask_sheet, write_mask_pngs
+from studies.bench import format_table, mask_sheet, write_mask_pngs
 from gdfe.cli import main
-from gdfe.solver import AUTO_NEWTON_CELLS, Solver, _factorise, auto_method, factor_backend
+from gdfe.solver import AUTO_NEWTON_CELLS, Solver, auto_method, factor_backend, factorise
+from gdfe.solver.linearised import linearised_start_cg
 
 
 def test_quick_bench_reports_every_section_and_verdict(capsys, tmp_path):
@@ -84,21 +85,21 @@ def test_newton_cg_on_a_single_cell():
 def test_iterative_linearised_start_leads_to_the_same_fixed_point():
     des = gdfe.from_masks(*mask_sheet(400), 0.1, 0.7, nz=1)
     s = Solver(des)
-    V0 = s._linearised_start_cg(des.mesh.points.copy())
-    V, ok, *_ = s.solve(V0, method="newton-cg", tol=1e-10)
+    V0 = linearised_start_cg(s, s.reduced_hessian, des.mesh.points.copy())
+    stats = s.solve(V0, method="newton-cg", tol=1e-10)
     ref = gdfe.simulate(des, method="newton", tol=1e-10).check()
-    assert ok
-    assert gdfe.shape_distance(V, ref.points)["max"] < 1e-8
+    assert stats.converged
+    assert gdfe.shape_distance(stats.points, ref.points)["max"] < 1e-8
 
 
 def test_factorisation_backends_agree(monkeypatch):
     des = gdfe.hinge(1.0, d=0.33)
     A = Solver(des).L_ff
     b = np.random.default_rng(1).standard_normal((A.shape[0], 3))
-    x = _factorise(A, backend="superlu").solve(b)
+    x = factorise(A, backend="superlu").solve(b)
     np.testing.assert_allclose(A @ x, b, atol=1e-9)
     pytest.importorskip("sksparse.cholmod")
-    y = _factorise(A, backend="cholmod").solve(b)
+    y = factorise(A, backend="cholmod").solve(b)
     np.testing.assert_allclose(y, x, rtol=1e-9, atol=1e-12)
     monkeypatch.setenv("GDFE_FACTOR", "superlu")
     assert factor_backend() == "superlu"
@@ -106,12 +107,14 @@ def test_factorisation_backends_agree(monkeypatch):
 
 def test_unknown_factor_backend_is_rejected(monkeypatch):
     monkeypatch.setenv("GDFE_FACTOR", "mumps")
-    with pytest.raises(ValueError, match="GDFE_FACTOR"):
+    with pytest.raises(ValueError, match="GDFE_FACTOR: expected one of 'cholmod', 'superlu', got 'mumps'"):
         factor_backend()
+    with pytest.raises(ValueError, match="backend: expected one of 'cholmod', 'superlu', got 'mumps'"):
+        factorise(gdfe.system_matrix(gdfe.hinge(1.0, d=0.33)), backend="mumps")
 
 
 def test_time_at_equal_error_interpolates_log_log():
-    from gdfe.bench import _time_at_error
+    from studies.bench import _time_at_error
 
     levels = [(1e-1, 1.0), (1e-3, 100.0)]
     assert _time_at_error(levels, 1e-2) == pytest.approx(10.0)

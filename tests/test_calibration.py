@@ -35,7 +35,7 @@ def test_thin_passive_layer_is_an_error_not_a_simulation():
 @pytest.mark.parametrize("kwargs, match", [
     (dict(K=-1.0), "K: expected a positive"),
     (dict(h=0.0), "h: expected a positive"),
-    (dict(K="a"), "K: expected a number"),
+    (dict(K="a"), "K: expected a positive finite number, got 'a'"),
 ])
 def test_calibration_rejects_bad_parameters(kwargs, match):
     with pytest.raises((ValueError, TypeError), match=match):

@@ -9,7 +9,7 @@ from studies import compare_models as cm
 
 
 def test_fem_mid_surface_interpolates_its_own_nodes_exactly():
-    res = rf.solve_linear(rf.hinge_mesh(1.6, 0.33, resolution="coarse"), rf.Material())
+    res = rf.solve_linear(rf.hinge_mesh(1.6, 0.33, resolution="coarse"), rf.BilayerMaterial())
     X, x = rf.midsurface(res)
     at = cm._fem_interpolator(res)
     assert np.abs(at(X[:, :2]) - x).max() < 1e-8
@@ -18,7 +18,7 @@ def test_fem_mid_surface_interpolates_its_own_nodes_exactly():
 def test_flat_gdfe_and_flat_fem_are_zero_distance_apart():
     L, cells = 1.6, 8
     fem = rf.solve_linear(rf.hinge_mesh(L, 0.33, width=cm.WIDTH, panel_length=cm._panel(L, cells),
-                                        resolution="coarse"), rf.Material(eigenstrain=0.0))
+                                        resolution="coarse"), rf.BilayerMaterial(eigenstrain=0.0))
     g = gdfe.simulate(gdfe.hinge(L, R=1.0, h=cm.H, width=cm.WIDTH, panel_length=cm.PANEL,
                                  cell_size=L / cells))
     rms, mx, *_ = cm._distance(cm._fem_interpolator(fem), g, np.array([-0.5 * L, -0.5 * cm.WIDTH, 0]))
@@ -26,7 +26,7 @@ def test_flat_gdfe_and_flat_fem_are_zero_distance_apart():
 
 
 def test_bad_resolution():
-    with pytest.raises(ValueError, match=r"resolution must be one of \['coarse', 'default', 'fine'\]"):
+    with pytest.raises(ValueError, match=r"resolution: expected one of 'coarse', 'default', 'fine', got 'medium'"):
         cm.run("medium")
 
 

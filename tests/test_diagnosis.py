@@ -9,7 +9,7 @@ import pytest
 import gdfe
 from gdfe.cli import main
 from gdfe.diagnosis import (EFFECTS, Model, catalogue, diagnose, evaluate, gdfe_check, model,
-                            residual_analysis, select, simulate_fold, timoshenko_curvature)
+                            residual_analysis, select, simulate_fold)
 from gdfe.diagnosis.fit import aicc, fit_params
 
 
@@ -24,19 +24,6 @@ def t1_diag():
 
 
 # -- closed forms -------------------------------------------------------------------------
-def test_timoshenko_equal_layers():
-    # equal thickness and modulus: kappa = 3 delta / (2 t)
-    assert timoshenko_curvature(0.5, 0.5, 1.0, 0.01) == pytest.approx(0.015, rel=1e-12)
-
-
-@pytest.mark.parametrize("h, d, E_ratio", [(0.29, 0.11, 0.3), (0.29, 0.51, 7.7), (0.2, 0.4, 1.0)])
-def test_timoshenko_matches_force_moment_balance(h, d, E_ratio):
-    """Timoshenko's formula against the laminate equations (force and moment balance)."""
-    lam = pytest.importorskip("reference_fem").laminate_curvature
-    kappa, _ = lam([d, h], [E_ratio, 1.0], [0.0, -0.02])  # coat at the bottom, film on top
-    assert timoshenko_curvature(h, d, E_ratio, 0.02) == pytest.approx(abs(kappa), rel=1e-10)
-
-
 def test_baseline_is_eq1(t1):
     K = 0.0608
     np.testing.assert_allclose(Model(()).predict([K], t1.L, t1.d, t1.h),

@@ -157,16 +157,17 @@ def test_cli_diagnose_shape(design_file, design, tmp_path, capsys):
 def test_load_measured_errors(tmp_path):
     bad = tmp_path / "scan.xyz"
     bad.write_text("1 2 3\n")
-    with pytest.raises(ValueError, match=r"expected a \.ply, \.vtu, \.obj or \.csv"):
+    with pytest.raises(ValueError, match=r"path: expected a \.ply or \.vtu or \.obj or \.csv measured shape, "
+                                         r"got 'scan\.xyz'"):
         load_measured(bad)
     p = tmp_path / "scan.csv"
     p.write_text("x,y,z\n0,0,0\n1,0,0\n0,one,0\n1,1,0\n")
-    with pytest.raises(ValueError, match="line 4: expected three numbers"):
+    with pytest.raises(ValueError, match="scan.csv: line 4: expected three numbers"):
         load_measured(p)
     p.write_text("a,b,c\n0,0,0\n")
-    with pytest.raises(ValueError, match="expected columns x, y, z"):
+    with pytest.raises(ValueError, match="scan.csv: expected columns x, y, z, got a, b, c"):
         load_measured(p)
-    with pytest.raises(FileNotFoundError):
+    with pytest.raises(FileNotFoundError, match="path: measured shape not found: .*none.csv"):
         load_measured(tmp_path / "none.csv")
 
 
@@ -189,5 +190,20 @@ def test_auto_alignment_uses_correspondences_only_for_a_mesh_of_the_design(desig
 
 
 def test_correspondence_needs_the_design_mesh(design):
-    with pytest.raises(ValueError, match="correspondence alignment needs"):
+    with pytest.raises(ValueError, match=rf"measured: expected the design's {design.mesh.n_points} vertices in its "
+                                         r"order for correspondence alignment, got 10 points"):
         diagnose_shape(design, np.zeros((10, 3)) + np.arange(10)[:, None], align="correspondence")
+
+
+@pytest.mark.parametrize("name, data", [("scan.vtu", b"<VTKFile>"), ("scan.ply", b"garbage\x00\x01"),
+                                        ("scan.ply", b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
+                                                     b"end_header\n1 2\n")])
+def test_corrupt_mesh_file_is_a_user_error_naming_it(tmp_path, name, data):
+    """meshio ends with SystemExit or raises its own errors on such files; both become one GdfeError."""
+    from gdfe._validation import GdfeError
+
+    p = tmp_path / name
+    p.write_bytes(data)
+    fmt = name.rsplit(".", 1)[1].upper()
+    with pytest.raises(GdfeError, match=rf"{name}: expected a readable {fmt} file, got one meshio cannot read"):
+        load_measured(p)

@@ -39,11 +39,11 @@ def test_fem_fit_on_a_grid_node_recovers_the_node():
 
 
 def test_fit_input_checks():
-    with pytest.raises(ValueError, match=r"need at least 3 folding tests"):
+    with pytest.raises(ValueError, match=r"tests: expected at least 3 folding tests"):
         fit_to_table(L[:2], D[:2], H[:2], [1.0, 1.0], model="timoshenko")
-    with pytest.raises(ValueError, match=r"d must hold positive lengths in mm"):
+    with pytest.raises(ValueError, match=r"d: expected positive lengths in mm"):
         fit_to_table(L, -D, H, L, model="timoshenko")
-    with pytest.raises(ValueError, match=r"alpha must hold 7 finite angles"):
+    with pytest.raises(ValueError, match=r"alpha: expected 7 finite angles"):
         fit_to_table(L, D, H, [1.0], model="timoshenko")
-    with pytest.raises(ValueError, match=r"model must be one of \['fem', 'timoshenko'\]"):
+    with pytest.raises(ValueError, match=r"model: expected one of 'fem', 'timoshenko'"):
         fit_to_table(L, D, H, L, model="spline")

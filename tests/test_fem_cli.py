@@ -35,11 +35,11 @@ def test_hinge_that_does_not_converge_exits_non_zero(capsys):
 
 
 @pytest.mark.parametrize("argv,match", [
-    (["--length", "0"], "length must be a positive number, got 0.0"),
-    (["--length", "1", "--d", "-0.2"], "d must be a positive number, got -0.2"),
-    (["--length", "1", "--nu", "0.5"], "nu must satisfy -1 < nu < 0.5"),
-    (["--length", "1", "--eigenstrain", "-1.2"], "eigenstrain must be greater than -1"),
-    (["--length", "1", "--E-ratio", "0"], "E_ratio must be a positive number"),
+    (["--length", "0"], "length: expected a positive finite number, got 0\n"),
+    (["--length", "1", "--d", "-0.2"], "d: expected a positive finite number, got -0.2\n"),
+    (["--length", "1", "--nu", "0.5"], "nu: expected a Poisson's ratio in (-1, 0.5), got 0.5\n"),
+    (["--length", "1", "--eigenstrain", "-1.2"], "eigenstrain: expected a strain > -1 (a free stretch 1 + strain > 0), got -1.2\n"),
+    (["--length", "1", "--E-ratio", "0"], "E_ratio: expected a positive finite number, got 0\n"),
 ])
 def test_bad_hinge_input_is_one_line_and_exit_1(capsys, argv, match):
     base = {"--length": "1.6", "--d": "0.33"}

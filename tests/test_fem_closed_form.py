@@ -53,13 +53,13 @@ def test_plane_strain_raises_the_mismatch_by_one_plus_nu():
 
 
 @pytest.mark.parametrize("kwargs,match", [
-    (dict(h=0.0), "h must be a positive number"),
-    (dict(d=-0.1), "d must be a positive number"),
-    (dict(E_active=0.0), "E_active must be a positive number"),
-    (dict(E_passive=-3.0), "E_passive must be a positive number"),
-    (dict(eigenstrain=-1.0), "eigenstrain must be greater than -1"),
-    (dict(nu_active=0.5), r"nu_active must satisfy -1 < nu_active < 0.5"),
-    (dict(state="shell"), "state must be one of"),
+    (dict(h=0.0), "h: expected a positive finite number, got 0"),
+    (dict(d=-0.1), "d: expected a positive finite number, got -0.1"),
+    (dict(E_active=0.0), "E_active: expected a positive finite number, got 0"),
+    (dict(E_passive=-3.0), "E_passive: expected a positive finite number, got -3"),
+    (dict(eigenstrain=-1.0), "eigenstrain: expected a strain > -1, got -1"),
+    (dict(nu_active=0.5), r"nu_active: expected a Poisson's ratio in \(-1, 0\.5\), got 0\.5"),
+    (dict(state="shell"), "state: expected one of 'beam', 'biaxial', 'plane_strain', got 'shell'"),
 ])
 def test_bad_input_is_named(kwargs, match):
     args = dict(h=0.29, d=0.33, E_active=3000, E_passive=3000, eigenstrain=-0.1)
@@ -69,7 +69,7 @@ def test_bad_input_is_named(kwargs, match):
 
 
 def test_laminate_rejects_mismatched_layers():
-    with pytest.raises(ValueError, match="thicknesses, moduli and eigenstrains must be 1-D arrays"):
+    with pytest.raises(ValueError, match="thicknesses, moduli, eigenstrains: expected 1-D arrays of one length"):
         laminate_curvature([0.1, 0.2], [1.0], [0.0, 0.0])
-    with pytest.raises(ValueError, match="thicknesses must all be positive"):
+    with pytest.raises(ValueError, match="thicknesses: expected a positive finite number, got an array containing 0"):
         laminate_curvature([0.1, 0.0], [1.0, 1.0], [0.0, 0.0])

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from reference_fem import Material, hinge_mesh
+from reference_fem import BilayerMaterial, hinge_mesh
 from reference_fem._kernel import (Discretisation, element_fields, linear_system,
                                    neohookean_state, svk_state)
 
@@ -12,7 +12,7 @@ from reference_fem._kernel import (Discretisation, element_fields, linear_system
 def small():
     strip = hinge_mesh(1.0, 0.33, 0.29, element_size=0.5, width=0.5, layers_per_ply=2,
                        junction_size=0.5, z_ratio=1.0)
-    mat = Material(E_active=3000, E_passive=1000, nu_active=0.3, nu_passive=0.4,
+    mat = BilayerMaterial(E_active=3000, E_passive=1000, nu_active=0.3, nu_passive=0.4,
                    eigenstrain=(-0.2, -0.1, 0.05))
     return strip, mat
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from reference_fem import (Material, curvature, fold_angle, hinge_mesh, layered_strip, strip_mesh,
+from reference_fem import (BilayerMaterial, curvature, fold_angle, hinge_mesh, layered_strip, strip_mesh,
                            solve_linear, solve_nonlinear, timoshenko_check, timoshenko_curvature,
                            arc_check, turning_angle)
 
@@ -35,7 +35,7 @@ def test_triquadratic_strip_reproduces_timoshenko_on_every_mesh():
 
 def test_wide_plate_follows_the_biaxial_formula_with_unequal_poisson_ratios():
     h, d = 0.29, 0.33
-    mat = Material(E_active=3000, E_passive=1500, nu_active=0.45, nu_passive=0.1, eigenstrain=-1e-3)
+    mat = BilayerMaterial(E_active=3000, E_passive=1500, nu_active=0.45, nu_passive=0.1, eigenstrain=-1e-3)
     k = curvature(solve_linear(strip_mesh(6.0, h, d, width=6.0, element_size=0.3), mat))
     kw = dict(nu_active=0.45, nu_passive=0.1)
     biaxial = timoshenko_curvature(h, d, 3000, 1500, -1e-3, state="biaxial", **kw)
@@ -48,7 +48,7 @@ def test_wide_plate_follows_the_biaxial_formula_with_unequal_poisson_ratios():
 
 def test_nonlinear_agrees_with_linear_at_small_eigenstrain():
     strip = hinge_mesh(1.6, 0.33, 0.29, resolution="coarse")
-    mat = Material.from_ratio(5.0, -1e-4)
+    mat = BilayerMaterial.from_ratio(5.0, -1e-4)
     lin, nl = solve_linear(strip, mat), solve_nonlinear(strip, mat)
     assert nl.converged and lin.converged
     # the geometric terms are of the order of the strains and rotations (~1e-4 here);
@@ -68,7 +68,7 @@ def test_large_eigenstrain_curls_a_strip_into_the_arc_kappa_L():
 
 def test_no_eigenstrain_leaves_the_shape_as_it_is():
     strip = hinge_mesh(1.0, 0.2, resolution="coarse")
-    mat = Material(eigenstrain=0.0)
+    mat = BilayerMaterial(eigenstrain=0.0)
     for res in (solve_linear(strip, mat), solve_nonlinear(strip, mat)):
         assert res.converged
         assert np.abs(res.displacement).max() < 1e-12
@@ -76,7 +76,7 @@ def test_no_eigenstrain_leaves_the_shape_as_it_is():
 
 def test_sandwich_panel_shrinks_without_bending():
     strip = layered_strip([(4.0, "both")], 0.29, 0.2, element_size=0.5)
-    res = solve_nonlinear(strip, Material.from_ratio(1.0, -0.1))
+    res = solve_nonlinear(strip, BilayerMaterial.from_ratio(1.0, -0.1))
     assert res.converged
     assert abs(turning_angle(res)) < 1e-8
     u = res.displacement
@@ -85,7 +85,7 @@ def test_sandwich_panel_shrinks_without_bending():
 
 
 def test_free_face_decides_the_fold_direction():
-    mat = Material.from_ratio(5.0, -0.05)
+    mat = BilayerMaterial.from_ratio(5.0, -0.05)
     up = solve_linear(hinge_mesh(1.0, 0.2, resolution="coarse", free_face="top"), mat)
     down = solve_linear(hinge_mesh(1.0, 0.2, resolution="coarse", free_face="bottom"), mat)
     assert fold_angle(up) == pytest.approx(fold_angle(down), rel=1e-9)
@@ -99,7 +99,7 @@ def test_free_face_decides_the_fold_direction():
 def test_fold_beyond_a_right_angle_is_unwrapped():
     # thin coat, soft film: a 5 mm hinge folds past pi/2
     strip = hinge_mesh(5.0, 0.14, resolution="coarse")
-    res = solve_nonlinear(strip, Material.from_ratio(7.7, -0.17))
+    res = solve_nonlinear(strip, BilayerMaterial.from_ratio(7.7, -0.17))
     assert res.converged
     alpha = fold_angle(res)
     assert np.pi / 2 < alpha < 2 * np.pi

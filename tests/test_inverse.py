@@ -113,7 +113,7 @@ def test_rounding_modes():
     assert inv.strip_pattern(circle, rounding="nearest", **kw).blocks[0] == 5
     assert inv.strip_pattern(circle, rounding="floor", **kw).blocks[0] == 4
     assert inv.strip_pattern(circle, rounding="ceil", **kw).blocks[0] == 5
-    with pytest.raises(ValueError, match="rounding"):
+    with pytest.raises(ValueError, match="rounding: expected one of 'nearest', 'floor', 'ceil', 'carry', got 'up'"):
         inv.strip_pattern(circle, rounding="up", **kw)
 
 
@@ -225,7 +225,7 @@ def test_sketch_needs_three_points(pts):
 def test_sketch_rejects_repeated_points_and_bad_penalty():
     with pytest.raises(ValueError, match="consecutive points 1 and 2 coincide"):
         inv.tangent_graph([[0, 0], [1, 0], [1, 0], [2, 1]])
-    with pytest.raises(ValueError, match="penalty"):
+    with pytest.raises(ValueError, match="penalty: expected a non-negative number, got -1"):
         inv.fit_segments(np.arange(5.0), np.zeros(5), -1.0)
 
 
@@ -284,3 +284,33 @@ def test_more_penalty_never_gives_more_segments():
     P = np.cumsum(rng.normal(size=(30, 2)), axis=0)
     ms = [inv.fit_sketch(P, pen).segmentation.m for pen in (0.01, 0.1, 1.0, 10.0)]
     assert ms == sorted(ms, reverse=True)
+
+
+def test_closest_on_polyline_by_hand():
+    poly = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0]])
+    d, c = inv.closest_on_polyline([[1.0, 1.0], [3.0, 3.0], [-1.0, 0.0]], poly)
+    np.testing.assert_allclose(d, [1.0, math.sqrt(2.0), 1.0])
+    np.testing.assert_allclose(c, [[1.0, 0.0], [2.0, 2.0], [0.0, 0.0]], atol=1e-15)
+
+
+@pytest.mark.parametrize("call, match", [
+    (lambda: inv.compare_curves(np.zeros((3, 3)), np.zeros((4, 2))),
+     r"points: expected an array of shape \(n, 2\), got shape \(3, 3\)"),
+    (lambda: inv.align_2d(np.zeros((3, 2)), np.zeros((4, 2))),
+     r"target: expected an array of shape \(3, 2\), got shape \(4, 2\)"),
+    (lambda: inv.with_hinges([(1.0, 0.0), (1.0, 0.0)], [0.0]),
+     r"turns: expected an array of shape \(2,\), got shape \(1,\)"),
+    (lambda: inv.fit_segments(np.arange(5.0), np.zeros(4), 0.1),
+     r"tau: expected an array of shape \(5,\), got shape \(4,\)"),
+    (lambda: inv.fit_sketch([[0, 0], [1, 0], [2, 1]], 0.1, weights="area"),
+     "weights: expected None, 'length' or an array, got 'area'"),
+])
+def test_shape_and_choice_checks_name_the_argument(call, match):
+    from gdfe._validation import GdfeError
+
+    with pytest.raises(GdfeError, match=match):
+        call()
+
+
+def test_every_public_name_resolves():
+    assert all(hasattr(inv, name) for name in inv.__all__)

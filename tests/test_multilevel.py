@@ -4,16 +4,15 @@ import numpy as np
 import pytest
 
 import gdfe
-import gdfe.solver
+import gdfe.solver.simulation
 from gdfe.design import Material
 from gdfe.multilevel import coarsen
-from gdfe.solver import face_contraction
 
 
 def _face_contraction(des):
     """Total (1 - R) x cell area contracted on the top and on the bottom face, per layer."""
     area = des.mesh.spacing[0] * des.mesh.spacing[1]
-    top, bottom = face_contraction(des)
+    top, bottom = des.face_contraction()
     return top.sum() * area, bottom.sum() * area
 
 
@@ -94,6 +93,6 @@ def test_multilevel_start_reaches_the_same_shape():
 def test_auto_init_switches_to_multilevel_above_the_threshold(monkeypatch):
     des = _stripes(24)
     assert "start" not in gdfe.simulate(des).timings
-    monkeypatch.setattr(gdfe.solver, "MULTILEVEL_CELLS", des.n_cells - 1)
+    monkeypatch.setattr(gdfe.solver.simulation, "MULTILEVEL_CELLS", des.n_cells - 1)
     res = gdfe.simulate(des).check()
     assert "start" in res.timings

@@ -5,7 +5,8 @@ import pytest
 
 import gdfe
 from gdfe.design import Material
-from gdfe.solver import D8, Solver, _rotations
+from gdfe.solver import D8, Solver
+from gdfe.solver.energy import rotations
 
 
 def one_cell(material, R=0.7, h=0.29, size=0.3):
@@ -91,9 +92,9 @@ def test_rigid_motion_of_the_start_moves_the_result_rigidly():
     s = Solver(des)
     start = base.points @ Q.T + t
     assert s.energy(start) == pytest.approx(base.energy, rel=1e-9, abs=1e-18)
-    V, ok, *_ = s.solve(start + 1e-3 * rng.standard_normal(start.shape), tol=1e-9)
-    assert ok
-    assert gdfe.shape_distance(V, base.points)["max"] < 1e-6
+    stats = s.solve(start + 1e-3 * rng.standard_normal(start.shape), tol=1e-9)
+    assert stats.converged
+    assert gdfe.shape_distance(stats.points, base.points)["max"] < 1e-6
 
 
 def test_in_plane_rotation_of_the_design_changes_nothing():
@@ -140,7 +141,7 @@ def test_system_matrix_is_symmetric_with_translations_in_its_null_space():
 def test_rotations_match_svd_and_handle_reflections():
     rng = np.random.default_rng(0)
     S = rng.standard_normal((500, 3, 3))
-    Q, trace = _rotations(S)
+    Q, trace = rotations(S)
     U, s, Vt = np.linalg.svd(S)
     flip = np.linalg.det(U @ Vt)
     U[:, :, 2] *= flip[:, None]
@@ -176,9 +177,10 @@ def test_contraction_schedule_gives_a_monotone_fold():
 
 
 @pytest.mark.parametrize("kwargs, exc, match", [
-    (dict(method="cg"), ValueError, "method: expected 'newton'"),
-    (dict(init="random"), ValueError, "init: expected 'auto', 'linear', 'multilevel', 'flat' or an"),
-    (dict(init=np.zeros((3, 3))), ValueError, r"init: expected .* a finite array of shape"),
+    (dict(method="cg"), ValueError,
+     "method: expected one of 'newton', 'newton-cg', 'auto', 'anderson', 'plain', got 'cg'"),
+    (dict(init="random"), ValueError, "init: expected one of 'auto', 'linear', 'multilevel', 'flat', got 'random'"),
+    (dict(init=np.zeros((3, 3))), ValueError, r"init: expected an array of shape \(\d+, 3\), got shape \(3, 3\)"),
     (dict(steps=0), ValueError, "steps: expected an integer >= 1"),
     (dict(steps=1.5), TypeError, "steps: expected an integer"),
     (dict(tol=-1), ValueError, "tol: expected a positive"),
@@ -186,6 +188,26 @@ def test_contraction_schedule_gives_a_monotone_fold():
 def test_simulate_rejects_bad_options(kwargs, exc, match):
     with pytest.raises(exc, match=match):
         gdfe.simulate(gdfe.hinge(1.0, d=0.33), **kwargs)
+
+
+def test_simulate_rejects_a_non_finite_start():
+    des = gdfe.hinge(1.0, d=0.33)
+    start = des.mesh.points.copy()
+    start[2, 1] = np.nan
+    with pytest.raises(ValueError, match=r"init: expected finite numbers, got nan at \[2, 1\]"):
+        gdfe.simulate(des, init=start)
+
+
+def test_solver_solve_rejects_bad_options():
+    des = gdfe.hinge(1.0, d=0.33)
+    s = Solver(des)
+    V = des.mesh.points
+    with pytest.raises(ValueError, match="method: expected one of 'newton', .*'plain', got 'cg'"):
+        s.solve(V, method="cg")
+    with pytest.raises(ValueError, match=r"V0: expected an array of shape \(\d+, 3\), got shape \(3, 3\)"):
+        s.solve(np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="max_iter: expected an integer >= 1, got 0"):
+        s.solve(V, max_iter=0)
 
 
 def test_simulate_rejects_a_non_design():

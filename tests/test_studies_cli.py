@@ -9,7 +9,7 @@ import pytest
 
 import gdfe
 from gdfe.cli import main
-from studies.cli import STUDIES
+from studies import STUDIES
 
 FIGURES = ("fig02", "fig06", "fig07", "fig08", "fig09", "fig10", "fig11")
 
@@ -88,10 +88,10 @@ def test_study_command_runs_the_bench(tmp_path, capsys):
 
 
 def test_report_links_figures_and_skips_missing_studies(tmp_path, monkeypatch):
-    from gdfe.report import build_report
-    import studies.cli
+    from studies.validation_report import build_report
+    import studies
 
-    monkeypatch.setitem(studies.cli.STUDIES, "missing", "studies.no_such_study")
+    monkeypatch.setitem(studies.STUDIES, "missing", "studies.no_such_study")
     summary = build_report(tmp_path, resolution="coarse", names=["fig02", "missing"], progress=False)
     html = (tmp_path / "index.html").read_text()
     assert '<img src="fig02/fig02.png"' in html
@@ -105,10 +105,10 @@ def test_report_links_figures_and_skips_missing_studies(tmp_path, monkeypatch):
 
 
 def test_report_records_a_failing_study(tmp_path, monkeypatch):
-    from gdfe.report import build_report
-    import studies.cli
+    from studies.validation_report import build_report
+    import studies
 
-    monkeypatch.setitem(studies.cli.STUDIES, "broken", "studies._broken_for_test")
+    monkeypatch.setitem(studies.STUDIES, "broken", "studies._broken_for_test")
     module = type(sys)("studies._broken_for_test")
 
     def run(resolution, out):
@@ -122,7 +122,7 @@ def test_report_records_a_failing_study(tmp_path, monkeypatch):
 
 
 def test_report_rejects_unknown_names(tmp_path):
-    from gdfe.report import build_report
+    from studies.validation_report import build_report
 
     with pytest.raises(ValueError, match="unknown studies"):
         build_report(tmp_path, names=["fig99"])

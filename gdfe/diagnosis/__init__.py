@@ -8,17 +8,21 @@ localised to the design's regions and corrected region by region.
 Angles in radians, lengths in mm.
 """
 
+from gdfe.diagnosis.align import align_icp
 from gdfe.diagnosis.angles import Diagnosis, diagnose
-from gdfe.diagnosis.effects import EFFECTS, Effect, Model, catalogue, model, timoshenko_curvature
-from gdfe.diagnosis.fit import ModelFit, evaluate, select
+from gdfe.diagnosis.effects import EFFECTS, Effect, Model, catalogue, model
+from gdfe.diagnosis.fit import EffectFit, evaluate, select
 from gdfe.diagnosis.forward import gdfe_check, simulate_fold, simulate_model
-from gdfe.diagnosis.shape import ShapeDiagnosis, Surface, align_icp, design_regions, diagnose_shape, load_measured
+from gdfe.diagnosis.regions import design_regions
+from gdfe.diagnosis.scan import load_measured
+from gdfe.diagnosis.shape import ShapeDiagnosis, diagnose_shape
+from gdfe.diagnosis.surface import Surface
 from gdfe.diagnosis.where import residual_analysis
 
 __all__ = [
     "Diagnosis", "diagnose",
-    "EFFECTS", "Effect", "Model", "catalogue", "model", "timoshenko_curvature",
-    "ModelFit", "evaluate", "select",
+    "EFFECTS", "Effect", "Model", "catalogue", "model",
+    "EffectFit", "evaluate", "select",
     "gdfe_check", "simulate_fold", "simulate_model",
     "ShapeDiagnosis", "Surface", "align_icp", "design_regions", "diagnose_shape", "load_measured",
     "residual_analysis",

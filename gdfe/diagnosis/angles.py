@@ -25,9 +25,10 @@ import logging
 
 import numpy as np
 
+from gdfe._validation import GdfeError
 from gdfe.calibration import FoldingTests, load_folding_tests
 from gdfe.diagnosis.effects import EFFECTS, Model, catalogue
-from gdfe.diagnosis.fit import STEP_SE, ModelFit, evaluate, select
+from gdfe.diagnosis.fit import STEP_SE, EffectFit, evaluate, select
 from gdfe.diagnosis.where import residual_analysis
 
 __all__ = ["Diagnosis", "diagnose", "numeric_columns"]
@@ -48,10 +49,10 @@ class Diagnosis:
         Group label of each test.
     held_out : str
         ``"loo"`` or ``"logo"``: the held-out error the models are ranked by.
-    baseline : ModelFit
-    fits : list of ModelFit
+    baseline : EffectFit
+    fits : list of EffectFit
         Every effect model (single effects and pairs), best held-out error first.
-    best : ModelFit
+    best : EffectFit
         The chosen model (may be the baseline: no effect earns its parameters).
     candidates : list of str
         Models within one standard error of the chosen model's held-out error, or below it.
@@ -69,9 +70,9 @@ class Diagnosis:
     tests: FoldingTests
     groups: np.ndarray | None
     held_out: str
-    baseline: ModelFit
+    baseline: EffectFit
     fits: list
-    best: ModelFit
+    best: EffectFit
     candidates: list
     where: list
     regime: str
@@ -223,13 +224,13 @@ def diagnose(tests, *, group=None, pairs=True, check=None, models=None):
         tests = load_folding_tests(tests)
     n = len(tests)
     if n < 5:
-        raise ValueError(f"tests: need at least 5 folding tests to fit and hold out, got {n}")
+        raise GdfeError(f"tests: need at least 5 folding tests to fit and hold out, got {n}")
     groups = None
     if group is None and "group" in tests.extra:
         group = "group"
     if group is not None:
         if group not in tests.extra:
-            raise ValueError(f"group: no column {group!r} in the tests; columns besides L_mm, d_mm, "
+            raise GdfeError(f"group: no column {group!r} in the tests; columns besides L_mm, d_mm, "
                              f"h_mm, alpha_rad: {', '.join(tests.extra) or 'none'}")
         groups = np.asarray(tests.extra[group])
         if len(np.unique(groups)) < 2:

@@ -26,35 +26,10 @@ import itertools
 
 import numpy as np
 
-__all__ = ["Effect", "Model", "EFFECTS", "timoshenko_curvature", "catalogue", "model"]
+from gdfe._validation import GdfeError, GdfeTypeError
+from gdfe.timoshenko import bilayer_curvature
 
-
-def timoshenko_curvature(h, d, E_ratio, mismatch):
-    """Curvature of a film/coat bilayer with a mismatch strain (Timoshenko's bimetal strip).
-
-    With ``m = h / d`` (film over coat thickness), ``n = E_film / E_coat = 1 / E_ratio`` and
-    ``t = h + d``::
-
-        kappa = 6 mismatch (1 + m)**2 / (t (3 (1 + m)**2 + (1 + m n) (m**2 + 1 / (m n))))
-
-    Parameters
-    ----------
-    h, d : float or array [mm]
-        Film and passive-coat thickness.
-    E_ratio : float
-        Young's modulus of the passive coat over that of the film.
-    mismatch : float
-        Contraction of the film relative to the coat (positive: the film shrinks).
-
-    Returns
-    -------
-    float or array [1/mm]
-        Curvature, positive towards the film.
-    """
-    m = h / d
-    n = 1.0 / E_ratio
-    t = h + d
-    return 6.0 * mismatch * (1 + m) ** 2 / (t * (3 * (1 + m) ** 2 + (1 + m * n) * (m**2 + 1 / (m * n))))
+__all__ = ["Effect", "Model", "EFFECTS", "catalogue", "model"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -123,10 +98,10 @@ class Model:
     def __init__(self, effects=()):
         for e in effects:
             if e not in EFFECTS:
-                raise ValueError(f"effect: expected one of {', '.join(EFFECTS)}, got {e!r}")
+                raise GdfeError(f"effect: expected one of {', '.join(EFFECTS)}, got {e!r}")
         effects = tuple(sorted(effects, key=list(EFFECTS).index))
         if len(set(effects)) != len(effects):
-            raise ValueError(f"effects: each effect at most once, got {effects}")
+            raise GdfeError(f"effects: each effect at most once, got {effects}")
         self.effects = effects
         self.name = "+".join(effects) if effects else "baseline"
         names = [] if "passive_stiffness" in effects else ["K"]
@@ -158,7 +133,7 @@ class Model:
         if "delta" in p:
             d = d + p["delta"]
         if "passive_stiffness" in self.effects:
-            c = h * timoshenko_curvature(h, d, p["E_ratio"], p["mismatch"])
+            c = h * bilayer_curvature(h, d, p["E_ratio"], p["mismatch"])
         else:
             c = p["K"] * (h / d) ** 1.5
         alpha = c * L / h if "beta" not in p else c * L / (h * (1.0 + p["beta"] * c))
@@ -171,7 +146,7 @@ class Model:
         p = dict(zip(self.param_names, np.asarray(params, float)))
         d = np.asarray(d, float) + p.get("delta", 0.0)
         if "passive_stiffness" in self.effects:
-            return h * timoshenko_curvature(h, d, p["E_ratio"], p["mismatch"])
+            return h * bilayer_curvature(h, d, p["E_ratio"], p["mismatch"])
         return p["K"] * (h / d) ** 1.5
 
     # -- what the fit needs --------------------------------------------------------------------
@@ -231,7 +206,7 @@ def catalogue(pairs=True):
 def model(name):
     """The :class:`Model` of a name: ``"baseline"``, an effect, or ``"a+b"``."""
     if not isinstance(name, str):
-        raise TypeError(f"model: expected a name, got {name!r}")
+        raise GdfeTypeError(f"model: expected a name, got {name!r}")
     if name == "baseline":
         return Model(())
     return Model(tuple(name.split("+")))

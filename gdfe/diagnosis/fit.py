@@ -25,9 +25,10 @@ import math
 
 import numpy as np
 
+from gdfe._validation import GdfeError
 from gdfe.diagnosis.effects import Model
 
-__all__ = ["ModelFit", "fit_params", "evaluate", "select", "aicc"]
+__all__ = ["EffectFit", "fit_params", "evaluate", "select", "aicc"]
 
 log = logging.getLogger(__name__)
 
@@ -35,7 +36,7 @@ _LOG_PARAMS = ("E_ratio",)
 
 
 @dataclasses.dataclass
-class ModelFit:
+class EffectFit:
     """A fitted model and its errors.
 
     Attributes
@@ -252,7 +253,7 @@ def evaluate(model, L, d, h, alpha, groups=None, starts=None):
 
     Returns
     -------
-    ModelFit
+    EffectFit
     """
     L, d, h, alpha = (np.asarray(a, float) for a in (L, d, h, alpha))
     n = alpha.size
@@ -280,7 +281,7 @@ def evaluate(model, L, d, h, alpha, groups=None, starts=None):
     tol = 1e-6 * (1 + np.abs(x))
     at_bound = [nm for nm, v, a, b, t in zip(model.param_names, x, lo, hi, tol)
                 if abs(v - a) <= t or abs(v - b) <= t]
-    return ModelFit(
+    return EffectFit(
         model=model, params=x, predicted=pred, residuals=alpha - pred,
         rmse=float(np.sqrt(rss / n)), loo_predicted=loo,
         loo_rmse=float(np.sqrt(np.mean((alpha - loo) ** 2))),
@@ -313,7 +314,7 @@ def select(fits, alpha, kind="loo", step_se=STEP_SE):
 
     Parameters
     ----------
-    fits : list of ModelFit
+    fits : list of EffectFit
         Must include the baseline (no effect).
     alpha : (n,) float array [rad]
         The measured angles.
@@ -322,7 +323,7 @@ def select(fits, alpha, kind="loo", step_se=STEP_SE):
 
     Returns
     -------
-    best : ModelFit
+    best : EffectFit
     candidates : list of str
         Models whose held-out error is within one standard error of the chosen one's, or
         below it (the alternatives the data cannot rule out), best first.
@@ -334,7 +335,7 @@ def select(fits, alpha, kind="loo", step_se=STEP_SE):
     for f in ok:
         levels.setdefault(len(f.model.effects), []).append(f)
     if 0 not in levels:
-        raise ValueError("fits: the baseline (no effect) must be among them with finite held-out errors")
+        raise GdfeError("fits: the baseline (no effect) must be among them with finite held-out errors")
     best = levels[0][0]
     for level in (1, 2):
         if level not in levels:

@@ -32,6 +32,7 @@ import logging
 
 import numpy as np
 
+from gdfe._validation import GdfeError, GdfeTypeError
 from gdfe.diagnosis.effects import Model
 
 __all__ = ["simulate_fold", "simulate_model", "gdfe_check", "CELLS"]
@@ -51,7 +52,7 @@ MAX_CELL = 0.36
 
 def _cells(resolution):
     if resolution not in CELLS:
-        raise ValueError(f"resolution: expected one of {', '.join(CELLS)}, got {resolution!r}")
+        raise GdfeError(f"resolution: expected one of {', '.join(CELLS)}, got {resolution!r}")
     return CELLS[resolution]
 
 
@@ -94,7 +95,7 @@ def simulate_fold(L, R, h, *, alpha_max=None, resolution="coarse"):
                 "iterations": int(res.iterations), "activation": 1.0,
                 "seconds": time.perf_counter() - t0}
     if not alpha_max > 0:
-        raise ValueError(f"alpha_max: expected a positive angle in rad, got {alpha_max}")
+        raise GdfeError(f"alpha_max: expected a positive angle in rad, got {alpha_max}")
     solver = gdfe.Solver(design)
     flat = design.mesh.points.copy()
     V, ok_all, its = None, True, 0
@@ -102,7 +103,8 @@ def simulate_fold(L, R, h, *, alpha_max=None, resolution="coarse"):
     def solve(a):
         nonlocal V, ok_all, its
         V0 = solver.linearised_start(flat, a) if V is None else V
-        V, ok, it, _, _ = solver.solve(V0, a)
+        stats = solver.solve(V0, a)
+        V, ok, it = stats.points, stats.converged, stats.iterations
         ok_all, its = ok_all and ok, its + it
         return gdfe.fold_angle(V, design)
 
@@ -143,7 +145,7 @@ def simulate_model(model, params, L, d, h, *, resolution="coarse"):
     if isinstance(model, str):
         model = model_by_name(model)
     if not isinstance(model, Model):
-        raise TypeError(f"model: expected a Model or a name, got {type(model).__name__}")
+        raise GdfeTypeError(f"model: expected a Model or a name, got {type(model).__name__}")
     L, d, h = np.broadcast_arrays(*(np.atleast_1d(np.asarray(a, float)) for a in (L, d, h)))
     p = dict(zip(model.param_names, np.asarray(params, float)))
     c = np.broadcast_to(model.contraction(params, d, h), L.shape)

@@ -1,18 +1,21 @@
-"""``gdfe fem``: the reference FEM from the command line.
+"""``gdfe fem``: the reference FEM (:mod:`reference_fem`) from the command line.
 
 Subcommands: ``hinge`` (fold one specimen), ``timoshenko-check`` (free bilayer against the closed
 form on a sequence of meshes), ``calibrate`` (fit E ratio and eigenstrain to folding tests).
-Nothing heavy is imported until a subcommand runs.
+scikit-fem is imported only when a subcommand runs.
 """
 
 from __future__ import annotations
+
+from gdfe import paper
+from gdfe.cli._common import emit
 
 __all__ = ["register"]
 
 
 def register(subparsers) -> None:
     """Add the ``fem`` command and its subcommands to the ``gdfe`` parser."""
-    from .mesh import HINGE_RESOLUTIONS
+    from reference_fem.mesh import HINGE_RESOLUTIONS
 
     fem = subparsers.add_parser("fem", help="reference finite-element bilayer model (scikit-fem)",
                                 description="Reference 3-D finite-element model of the bilayer.")
@@ -24,7 +27,7 @@ def register(subparsers) -> None:
                                    "on one face) and report its angle and curvature.")
     p.add_argument("--length", type=float, required=True, help="hinge width L [mm]")
     p.add_argument("--d", type=float, required=True, help="passive coat thickness d [mm]")
-    p.add_argument("--h", type=float, default=0.29, help="film thickness h [mm] (default 0.29)")
+    p.add_argument("--h", type=float, default=paper.H, help=f"film thickness h [mm] (default {paper.H:g})")
     p.add_argument("--nonlinear", action="store_true",
                    help="geometrically nonlinear solve (default: linear, small strain)")
     p.add_argument("--E-ratio", dest="E_ratio", type=float, default=None,
@@ -68,17 +71,13 @@ def register(subparsers) -> None:
 
 
 def _cmd_hinge(args) -> int:
-    from gdfe.cli import emit
-
-    from .material import CALIBRATED_E_RATIO, CALIBRATED_EIGENSTRAIN, Material
-    from .measure import curvature, fold_angle
-    from .mesh import hinge_mesh
-    from .solve import solve_linear, solve_nonlinear
-    from .timoshenko import timoshenko_curvature
+    from gdfe.timoshenko import timoshenko_curvature
+    from reference_fem import (CALIBRATED_E_RATIO, CALIBRATED_EIGENSTRAIN, BilayerMaterial, curvature, fold_angle,
+                               hinge_mesh, solve_linear, solve_nonlinear)
 
     ratio = CALIBRATED_E_RATIO if args.E_ratio is None else args.E_ratio
     eps = CALIBRATED_EIGENSTRAIN if args.eigenstrain is None else args.eigenstrain
-    mat = Material.from_ratio(ratio, eps, nu=args.nu)
+    mat = BilayerMaterial.from_ratio(ratio, eps, nu=args.nu)
     strip = hinge_mesh(args.length, args.d, args.h, width=args.width,
                        panel_length=args.panel_length, resolution=args.resolution)
     if args.nonlinear:
@@ -112,9 +111,7 @@ def _cmd_hinge(args) -> int:
 
 
 def _cmd_timoshenko_check(args) -> int:
-    from gdfe.cli import emit
-
-    from .verify import timoshenko_check
+    from reference_fem import timoshenko_check
 
     elements = ("hex1", "hex2") if args.element == "both" else (args.element,)
     checks = [timoshenko_check(el) for el in elements]
@@ -137,9 +134,7 @@ def _cmd_timoshenko_check(args) -> int:
 
 def _cmd_calibrate(args) -> int:
     from gdfe.calibration import TABLE1, load_folding_tests
-    from gdfe.cli import emit
-
-    from .calibrate import fit_to_table
+    from reference_fem import fit_to_table
 
     tests = load_folding_tests(TABLE1 if args.table is None else args.table)
     fit = fit_to_table(tests.L, tests.d, tests.h, tests.alpha, model=args.model, nu=args.nu,

@@ -1,4 +1,5 @@
-"""Reports of a diagnosis: plots (residual maps, before/after) and a readable summary.
+"""The figures and files of a diagnosis: plots (residual maps, before/after), a readable
+summary and the JSON (``gdfe diagnose --report DIR``).
 
 matplotlib is imported inside the functions.
 """
@@ -16,20 +17,17 @@ log = logging.getLogger(__name__)
 
 
 def _plt():
-    import matplotlib
+    from gdfe._plotting import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    return pyplot()
 
 
 def _save(plt, fig, path):
     """Lay out ``fig``, write it to ``path`` as PNG and close it."""
+    from gdfe.io import save_figure
+
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=110)
 
 
 def write_report(diag, out):

@@ -1,6 +1,6 @@
-"""The HTML validation report: every study run, its figures, paper-vs-ours numbers, versions.
+"""``gdfe report``, the HTML validation report: every study run, its figures, paper-vs-ours numbers, versions.
 
-``build_report(out, resolution)`` runs each study of the registry (``studies.cli.STUDIES``)
+``build_report(out, resolution)`` runs each study of the registry (``studies.STUDIES``)
 into ``out/NAME/``, then writes ``out/index.html`` (self-contained apart from the PNGs
 beside it; no network access) and ``out/report.json``. A study whose module is not
 importable is skipped and noted; one that raises is reported with its error.
@@ -18,6 +18,7 @@ import time
 import traceback
 from pathlib import Path
 
+from gdfe._validation import GdfeError
 from gdfe.io import write_json, write_text
 
 __all__ = ["build_report", "software_versions"]
@@ -75,7 +76,7 @@ def build_report(out, resolution="default", names=None, progress=None):
         Output directory (created).
     resolution : {"coarse", "default", "fine"}
     names : list of str, optional
-        Studies to run (default: all of ``studies.cli.STUDIES``).
+        Studies to run (default: all of ``studies.STUDIES``).
     progress : bool, optional
         Show a progress bar (default: when stderr is a terminal).
 
@@ -86,14 +87,14 @@ def build_report(out, resolution="default", names=None, progress=None):
         regression checks; skipped studies do not count against it), ``studies`` (one
         record per study), ``versions``.
     """
+    from studies import STUDIES
     from studies._common import check_resolution
-    from studies.cli import STUDIES
 
     check_resolution(resolution)
     names = list(STUDIES) if names is None else list(names)
     unknown = [n for n in names if n not in STUDIES]
     if unknown:
-        raise ValueError(f"names: unknown studies {unknown}; expected some of {', '.join(STUDIES)}")
+        raise GdfeError(f"names: unknown studies {unknown}; expected some of {', '.join(STUDIES)}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     if progress is None:

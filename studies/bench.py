@@ -1,4 +1,4 @@
-"""``gdfe bench``: GDFE's speed, against its own lower bound and the reference FEM.
+"""The benchmark (``gdfe bench``): GDFE's speed, against its own lower bound and the reference FEM.
 
 A benchmark, not a timed test: every number is a median of repeated runs in one process,
 on this machine (its core count and load are recorded with the results). Sections:
@@ -40,11 +40,12 @@ shown as "start s". On the 10^5 sheet both starts reach the same buckled state (
 6.552702e-2); how other starts can end elsewhere is in the README ("Large designs and speed").
 
 Factorisation choice (``gdfe.solver.FACTOR_BACKENDS``): CHOLMOD when scikit-sparse is
-installed, else SuperLU. Measured on 2 cores (docs/bench/bench.txt): the 10^5 sheet's
-n x n matrix (2.0e5 unknowns) factorises in 1.34 s with CHOLMOD against 4.56 s with
-SuperLU and 4.03 s with cholespy; the 3n x 3n Newton Hessian at 10^4 cells in 0.83 s
-against 2.87 s (SuperLU) and 2.73 s (cholespy). ``gdfe bench`` repeats these
-measurements on the machine it runs on.
+installed, else SuperLU; section 4 measures why (the last results are in
+``docs/bench/bench.txt``), on the machine it runs on.
+
+:func:`run` returns the results as a JSON-ready dict, :func:`format_table` prints them and
+:func:`plot` draws time against element count; the study ``bench-scaling``
+(:mod:`studies.bench_scaling`) and the command ``gdfe bench`` call them.
 """
 
 from __future__ import annotations
@@ -59,13 +60,14 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["run", "format_table", "register", "mask_sheet", "write_mask_pngs", "SETTINGS"]
+from gdfe._validation import GdfeError
+from gdfe.paper import FIG6_D, FIG6_LENGTHS, H
+from studies._common import error_against_finest, median_time
+
+__all__ = ["run", "format_table", "plot", "mask_sheet", "write_mask_pngs", "SETTINGS", "FEM_LEVELS"]
 
 log = logging.getLogger(__name__)
 
-H = 0.29
-FIG6_D = 0.33
-FIG6_LENGTHS = (1.0, 1.6, 2.6)
 #: The hinge of the FEM comparison: (L, d) [mm], strip width and panel length [mm].
 FEM_HINGE = (1.6, FIG6_D)
 FEM_WIDTH = 1.0
@@ -154,16 +156,6 @@ class _quiet:
         self.logger.setLevel(self.level)
 
 
-def _median_time(fn, repeats):
-    times = []
-    out = None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times), times, out
-
-
 def _machine():
     import scipy
 
@@ -192,7 +184,7 @@ def _hinges(cfg):
             kw = {"max_iter": cfg["plain_max_iter"]} if method == "plain" else {}
             reps = 1 if method == "plain" else cfg["repeats"]
             with _quiet("gdfe.solver"):  # plain alternation is expected to stop at max_iter
-                med, times, res = _median_time(lambda: gdfe.simulate(des, method=method, **kw), reps)
+                med, times, res = median_time(lambda: gdfe.simulate(des, method=method, **kw), reps)
             rows.append({"L_mm": L, "cells": des.n_cells, "method": method, "converged": res.converged,
                          "iterations": res.iterations, "residual": res.residual, "seconds": med,
                          "seconds_all": times, "fold_angle_rad": float(gdfe.fold_angle(res)),
@@ -232,7 +224,7 @@ def _factor_with(name, A):
     """Factorise SPD ``A`` with backend ``name``; return a function solving for a (k, r) array."""
     import scipy.sparse as sp
 
-    from gdfe.solver import _factorise
+    from gdfe.solver import factorise
 
     if name == "cholespy":
         import cholespy
@@ -247,7 +239,7 @@ def _factor_with(name, A):
             f.solve(b, x)
             return x
         return solve
-    fac = _factorise(A, backend=name)
+    fac = factorise(A, backend=name)
     return lambda b: fac.solve(np.asfortranarray(b))
 
 
@@ -256,8 +248,8 @@ def _time_factorisations(A, nrhs, repeats):
     rng = np.random.default_rng(0)
     b = rng.standard_normal((A.shape[0], nrhs))
     for name in _factor_candidates():
-        t_fac, _, solve = _median_time(lambda: _factor_with(name, A), repeats)
-        t_sol, _, x = _median_time(lambda: solve(b), max(3, repeats))
+        t_fac, _, solve = median_time(lambda: _factor_with(name, A), repeats)
+        t_sol, _, x = median_time(lambda: solve(b), max(3, repeats))
         x = np.asarray(x).reshape(b.shape)
         rel = float(np.abs(A @ x - b).max() / np.abs(b).max())
         out[name] = {"factorise_s": t_fac, "solve_s": t_sol, "relative_residual": rel}
@@ -307,14 +299,14 @@ def _sheet_case(args):
     # lower bound: one prefactorised solve for 3 right-hand sides plus one batched SVD
     sv = Solver(des)
     V = res.points
-    Q, _ = sv.orient(V)
-    S = sv._last_S
+    o = sv.orient(V)
+    Q, S = o.Q, o.S
     rhs = np.asfortranarray(np.random.default_rng(0).standard_normal((len(sv.free), 3)))
     k = 5 if des.n_cells <= 20_000 else 3
-    t_solve = _median_time(lambda: sv._lu.solve(rhs), k)[0]
-    t_svd = _median_time(lambda: np.linalg.svd(S), k)[0]
-    t_orient = _median_time(lambda: sv.orient(V), k)[0]
-    t_assemble = _median_time(lambda: sv.assemble(Q, V[sv.pin]), k)[0]
+    t_solve = median_time(lambda: sv.factor.solve(rhs), k)[0]
+    t_svd = median_time(lambda: np.linalg.svd(S), k)[0]
+    t_orient = median_time(lambda: sv.orient(V), k)[0]
+    t_assemble = median_time(lambda: sv.assemble(Q, V[sv.pin]), k)[0]
     bound = t_solve + t_svd
     row["lower_bound"] = {"solve_3rhs_s": t_solve, "svd_s": t_svd, "bound_s": bound,
                           "orientation_s": t_orient, "assembly_s": t_assemble,
@@ -380,7 +372,7 @@ def _fem_comparison(cfg, progress):
     gdfe_rows = []
     for n in _progress(cfg["gdfe_levels"], "GDFE hinge levels", progress):
         des = gdfe.hinge(L, d=d, h=H, width=FEM_WIDTH, panel_length=FEM_PANEL, cell_size=L / n)
-        med, times, res = _median_time(lambda: gdfe.simulate(des, method="auto"), cfg["repeats"])
+        med, times, res = median_time(lambda: gdfe.simulate(des, method="auto"), cfg["repeats"])
         gdfe_rows.append({"level": f"{n} cells across the hinge", "method": res.method, "elements": des.n_cells, "seconds": med,
                           "seconds_all": times, "alpha_rad": float(gdfe.fold_angle(res)),
                           "converged": res.converged})
@@ -391,14 +383,12 @@ def _fem_comparison(cfg, progress):
         strip = rf.hinge_mesh(L, d, H, width=FEM_WIDTH, panel_length=FEM_PANEL, element_size=size,
                               layers_per_ply=layers, z_ratio=zr, junction_size=junc * size)
         reps = 1 if i == len(levels) - 1 else cfg["repeats"]
-        med, times, res = _median_time(lambda: rf.solve_nonlinear(strip, rf.Material()), reps)
+        med, times, res = median_time(lambda: rf.solve_nonlinear(strip, rf.BilayerMaterial()), reps)
         fem_rows.append({"level": f"size {size:.3g} mm, {layers} layers/ply", "elements": int(strip.n_elements),
                          "dofs": int(res.dofs), "seconds": med, "seconds_all": times,
                          "alpha_rad": float(rf.fold_angle(res)), "converged": bool(res.converged)})
     for rows in (gdfe_rows, fem_rows):
-        ref = rows[-1]["alpha_rad"]
-        for r in rows:
-            r["error_rad"] = abs(r["alpha_rad"] - ref)
+        error_against_finest(rows)
     out = {"hinge": {"L_mm": L, "d_mm": d, "h_mm": H, "width_mm": FEM_WIDTH, "panel_mm": FEM_PANEL},
            "gdfe": gdfe_rows, "fem_nonlinear": fem_rows,
            "error_rule": "error = |alpha - alpha at the model's own finest level|; each model's time at "
@@ -459,7 +449,7 @@ def run(quick=False, sizes=None, fem=None, out=None, progress=None):
     if sizes is not None:
         sizes = [int(s) for s in sizes]
         if not sizes or min(sizes) < 4:
-            raise ValueError(f"sizes: expected cell counts >= 4, got {sizes}")
+            raise GdfeError(f"sizes: expected cell counts >= 4, got {sizes}")
         cfg["sheet_sizes"] = tuple(sizes)
     if fem is not None:
         cfg["fem"] = bool(fem)
@@ -549,11 +539,10 @@ def _write(result, out):
 
 def plot(result, path):
     """Time against element count: GDFE sheets and hinge levels, and the nonlinear FEM."""
-    import matplotlib
+    from gdfe._plotting import pyplot
+    from gdfe.io import save_figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.6))
     sheets = [r for r in result["sheets"] if "skipped" not in r and r["converged"]]
     if sheets:
@@ -576,8 +565,7 @@ def plot(result, path):
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path, dpi=120)
 
 
 # -- text -------------------------------------------------------------------------------------
@@ -658,34 +646,8 @@ def format_table(res):
         if "projected_1e6" in v:
             pj = v["projected_1e6"]
             extra += (f"; 10^6 cells not run, extrapolated {pj['seconds']:.3g} s and "
-                      f"{pj['peak_rss_mib'] / 1024:.2g} GiB (an underestimate: a measured 10^6 run took over 78 min, see README)")
+                      f"{pj['peak_rss_mib'] / 1024:.2g} GiB from the fitted exponents")
         note = f" [{v['note']}]" if v.get("note") and (v["met"] is None or "quick" in v["note"]) else ""
         lines.append(f"  {_verdict_word(v):>7}  {v['goal']}: {val}{extra}{note}")
     lines.append(f"\n({res['seconds']:.0f} s in all)")
     return "\n".join(lines)
-
-
-# -- CLI --------------------------------------------------------------------------------------
-def register(subparsers):
-    """Add the ``bench`` subcommand."""
-    p = subparsers.add_parser("bench", help="benchmark GDFE (hinges, mask sheets, lower bound, FEM)",
-                              description=__doc__.split("\n\n")[0])
-    p.add_argument("--quick", action="store_true", help="tiny sizes, one repeat, no FEM (seconds)")
-    p.add_argument("--json", action="store_true", help="print JSON instead of tables")
-    p.add_argument("--out", type=Path, help="write bench.json, bench_scaling.png and the masks here")
-    p.add_argument("--sizes", type=lambda s: [int(float(x)) for x in s.split(",")],
-                   help="sheet sizes in cells, comma-separated (e.g. 1e3,1e4,1e5,1e6)")
-    p.add_argument("--no-fem", dest="fem", action="store_false", default=None, help="skip the FEM comparison")
-    p.add_argument("--fem", dest="fem", action="store_true", help="run the FEM comparison even with --quick")
-    p.set_defaults(func=_cmd_bench)
-
-
-def _cmd_bench(args):
-    from gdfe.cli import emit
-
-    res = run(quick=args.quick, sizes=args.sizes, fem=args.fem, out=args.out)
-    emit(res, args.json, format_table(res))
-    accelerated = [r for r in res["hinges"] if r["method"] in ("newton", "newton-cg")]
-    sheets = [r for r in res["sheets"] if "skipped" not in r]
-    ok = all(r["converged"] for r in accelerated + sheets)
-    return 0 if ok else 1

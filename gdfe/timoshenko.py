@@ -24,6 +24,10 @@ side). The effective moduli ``E'`` and mismatch depend on the state across the w
     eigenstrain: ``E' = E / (1 - nu^2)``, ``eps*_eff = (1 + nu_active) eps*``. The upper bound that a
     very wide strip, forced into a cylinder at large deflection, approaches.
 
+The diagnosis's ``passive_stiffness`` effect (:mod:`gdfe.diagnosis.effects`) and the reference
+FEM's verification (:mod:`reference_fem.verify`) both use this module: it is the project's one
+implementation of the formula.
+
 Lengths in mm, curvatures in 1/mm.
 """
 
@@ -31,11 +35,29 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _validate as v
+from gdfe._validation import GdfeError, check_array, check_choice, check_number, check_poisson, check_positive
 
-__all__ = ["timoshenko_curvature", "laminate_curvature"]
+__all__ = ["timoshenko_curvature", "bilayer_curvature", "laminate_curvature", "STATES"]
 
-_STATES = {"beam", "biaxial", "plane_strain"}
+#: Stress states across the width (see the module docstring).
+STATES = ("beam", "biaxial", "plane_strain")
+
+
+def _bimetal(m, n, t, mismatch):
+    """Timoshenko's formula in its own variables (any numeric type: arrays, complex steps)."""
+    return 6.0 * mismatch * (1 + m) ** 2 / (t * (3 * (1 + m) ** 2 + (1 + m * n) * (m**2 + 1.0 / (m * n))))
+
+
+def bilayer_curvature(h, d, E_ratio, mismatch):
+    """Curvature [1/mm] of a film of thickness ``h`` on a coat ``d`` in the beam state, no checks.
+
+    ``E_ratio`` is ``E_coat / E_film`` and ``mismatch`` the film's contraction relative to the
+    coat (positive: the film shrinks), so this is :func:`timoshenko_curvature` with
+    ``E_active = 1``, ``E_passive = E_ratio``, ``eigenstrain = -mismatch``. It takes arrays
+    and complex numbers (the diagnosis differentiates it by complex steps) and checks nothing:
+    callers validate.
+    """
+    return _bimetal(h / d, 1.0 / E_ratio, h + d, mismatch)
 
 
 def timoshenko_curvature(h, d, E_active, E_passive, eigenstrain, *, nu_active=0.0,
@@ -70,28 +92,22 @@ def timoshenko_curvature(h, d, E_active, E_passive, eigenstrain, *, nu_active=0.
     >>> round(timoshenko_curvature(0.5, 0.5, 1.0, 1.0, -0.01), 6)
     0.015
     """
-    h = _positive_array("h", h)
-    d = _positive_array("d", d)
-    Ea = v.positive("E_active", E_active)
-    Ep = v.positive("E_passive", E_passive)
-    nua = v.poisson("nu_active", nu_active)
-    nup = v.poisson("nu_passive", nu_passive)
-    eps = np.asarray(eigenstrain, dtype=float)
-    if not np.all(np.isfinite(eps)) or np.any(eps <= -1.0):
-        raise ValueError(f"eigenstrain must be greater than -1, got {eigenstrain!r}")
-    v.choice("state", state, _STATES)
+    h = np.asarray(check_positive("h", h), float)
+    d = np.asarray(check_positive("d", d), float)
+    Ea = check_positive("E_active", E_active)
+    Ep = check_positive("E_passive", E_passive)
+    nua = check_poisson("nu_active", nu_active)
+    nup = check_poisson("nu_passive", nu_passive)
+    eps = np.asarray(check_number("eigenstrain", eigenstrain, minimum=-1.0, include_minimum=False,
+                                  what="a strain > -1", allow_array=True), float)
+    check_choice("state", state, STATES)
     if state == "beam":
         Ea_eff, Ep_eff, mismatch = Ea, Ep, -eps
     elif state == "biaxial":
         Ea_eff, Ep_eff, mismatch = Ea / (1 - nua), Ep / (1 - nup), -eps
     else:
         Ea_eff, Ep_eff, mismatch = Ea / (1 - nua**2), Ep / (1 - nup**2), -(1 + nua) * eps
-    m = h / d
-    n = Ea_eff / Ep_eff
-    t = h + d
-    kappa = 6.0 * mismatch * (1 + m) ** 2 / (
-        t * (3 * (1 + m) ** 2 + (1 + m * n) * (m**2 + 1.0 / (m * n)))
-    )
+    kappa = _bimetal(h / d, Ea_eff / Ep_eff, h + d, mismatch)
     return float(kappa) if np.ndim(kappa) == 0 else kappa
 
 
@@ -118,20 +134,17 @@ def laminate_curvature(thicknesses, moduli, eigenstrains):
     eps0 : float
         Strain at the bottom face ``z = 0``.
     """
-    t = np.atleast_1d(np.asarray(thicknesses, dtype=float))
-    E = np.atleast_1d(np.asarray(moduli, dtype=float))
-    e = np.atleast_1d(np.asarray(eigenstrains, dtype=float))
+    t = np.atleast_1d(check_array("thicknesses", thicknesses))
+    E = np.atleast_1d(check_array("moduli", moduli))
+    e = np.atleast_1d(check_array("eigenstrains", eigenstrains))
     if not (t.shape == E.shape == e.shape) or t.ndim != 1:
-        raise ValueError(
-            "thicknesses, moduli and eigenstrains must be 1-D arrays of one length, "
+        raise GdfeError(
+            "thicknesses, moduli, eigenstrains: expected 1-D arrays of one length, "
             f"got shapes {t.shape}, {E.shape}, {e.shape}"
         )
-    if np.any(~(t > 0)):
-        raise ValueError(f"thicknesses must all be positive, got {t.tolist()}")
-    if np.any(~(E > 0)):
-        raise ValueError(f"moduli must all be positive, got {E.tolist()}")
-    if np.any(~(e > -1)):
-        raise ValueError(f"eigenstrains must all be greater than -1, got {e.tolist()}")
+    check_positive("thicknesses", t)
+    check_positive("moduli", E)
+    check_number("eigenstrains", e, minimum=-1.0, include_minimum=False, what="strains > -1", allow_array=True)
     z = np.concatenate([[0.0], np.cumsum(t)])
     z0, z1 = z[:-1], z[1:]
     A = np.sum(E * (z1 - z0))
@@ -142,12 +155,3 @@ def laminate_curvature(thicknesses, moduli, eigenstrains):
     eps0, kappa = np.linalg.solve([[A, B], [B, D]], [N, M])
     return float(kappa), float(eps0)
 
-
-def _positive_array(name, value):
-    try:
-        x = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a positive number, got {value!r}") from None
-    if x.size == 0 or not np.all(np.isfinite(x)) or np.any(x <= 0):
-        raise ValueError(f"{name} must be a positive number, got {value!r}")
-    return x

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gdfe.cli import emit
+from gdfe.cli._common import emit
+from gdfe.diagnosis.forward import CELLS
+from gdfe.diagnosis.shape import ALIGNMENTS
 from gdfe.io import write_json
 
 __all__ = ["register"]
@@ -22,7 +24,7 @@ def register(sub):
     p.add_argument("--group", help="column with a group label for leave-one-group-out "
                                    "(default: 'group' if present)")
     p.add_argument("--no-pairs", action="store_true", help="fit single effects only")
-    p.add_argument("--check", choices=["none", "coarse", "default", "fine"], default="coarse",
+    p.add_argument("--check", choices=["none", *CELLS], default="coarse",
                    help="resolution of the GDFE solves that check the closed forms (default coarse)")
     p.set_defaults(func=_cmd_diagnose)
 
@@ -36,7 +38,7 @@ def register(sub):
     p.add_argument("--json", dest="json_out", metavar="OUT.json",
                    help="write the result as JSON here ('-': print it instead of the summary)")
     p.add_argument("--report", type=Path, metavar="DIR", help="write plots and summary.md here")
-    p.add_argument("--align", choices=["auto", "correspondence", "icp"], default="auto",
+    p.add_argument("--align", choices=ALIGNMENTS, default="auto",
                    help="correspondences (a mesh of the design) or ICP; default: decide from the file")
     p.add_argument("--no-correct", action="store_true", help="skip the per-region correction fit")
     p.set_defaults(func=_cmd_diagnose_shape)
@@ -50,7 +52,7 @@ def _cmd_diagnose(args):
     obj = diag.as_dict()
     text = diag.text()
     if args.report:
-        from gdfe.diagnosis.report import write_report
+        from gdfe.diagnosis.figures import write_report
 
         files = write_report(diag, args.report)
         obj["report"] = files
@@ -69,7 +71,7 @@ def _cmd_diagnose_shape(args):
     obj = res.as_dict()
     text = res.text()
     if args.report:
-        from gdfe.diagnosis.report import write_shape_report
+        from gdfe.diagnosis.figures import write_shape_report
 
         obj["report"] = write_shape_report(res, args.report)
         text += f"\nreport: {obj['report']['summary']}"

@@ -1,0 +1,241 @@
+"""The input checks of the whole project: one toolkit, one message style, one exception.
+
+Every check names the argument (or file, key, column) and says what it expected and what
+came, as ``"NAME: expected ..., got ..."``, and raises :class:`GdfeError` (a
+``ValueError``), or one of its subclasses that are also a ``TypeError`` (a value of the
+wrong kind) or a ``FileNotFoundError`` (a missing file). The command line turns a
+:class:`GdfeError` into one line and a non-zero exit status; any other exception is a bug
+and keeps its traceback.
+
+Modelled on PyVista's ``core/_validation`` (``validate_array(x, must_have_shape=...,
+must_be_finite=True, name=...)``).
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from pathlib import Path
+
+import numpy as np
+
+__all__ = [
+    "GdfeError", "GdfeTypeError", "GdfeFileNotFoundError",
+    "check_number", "check_positive", "check_ratio", "check_poisson", "check_int", "check_bool", "check_choice",
+    "check_array", "check_file", "check_instance", "describe",
+]
+
+
+class GdfeError(ValueError):
+    """An error in what the user gave: a value, a file, a key or a column."""
+
+
+class GdfeTypeError(GdfeError, TypeError):
+    """A user error where a value is of the wrong kind (a string for a number, ...)."""
+
+
+class GdfeFileNotFoundError(GdfeError, FileNotFoundError):
+    """A user error naming a file that is not there."""
+
+
+def describe(value) -> str:
+    """A short text of ``value`` for a message: numbers with ``%g``, others by ``repr``."""
+    if isinstance(value, (bool, np.bool_)) or value is None or isinstance(value, (str, bytes)):
+        return repr(value)
+    if isinstance(value, numbers.Real):
+        return f"{float(value):g}"
+    if isinstance(value, np.ndarray):
+        if value.ndim == 0:
+            return describe(value.item())
+        return f"an array of shape {value.shape}"
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _float_array(name, value, kind="a number"):
+    """``value`` as a float array; strings, booleans and None are not numbers."""
+    if value is None or isinstance(value, (str, bytes, bool, np.bool_)):
+        raise GdfeTypeError(f"{name}: expected {kind}, got {describe(value)}")
+    arr = np.asarray(value)
+    if arr.dtype == bool or arr.dtype.kind in "OUSV":
+        if arr.dtype.kind == "O":
+            try:
+                return np.asarray(value, dtype=float)
+            except (TypeError, ValueError):
+                pass
+        raise GdfeTypeError(f"{name}: expected {kind}, got {describe(value)}")
+    try:
+        return np.asarray(arr, dtype=float)
+    except (TypeError, ValueError):
+        raise GdfeTypeError(f"{name}: expected {kind}, got {describe(value)}") from None
+
+
+def _first_bad(arr, bad):
+    """The message's ``got`` part for the entries of ``arr`` flagged in ``bad``."""
+    if arr.ndim == 0:
+        return f"{float(arr):g}"
+    values = arr[bad]
+    return f"an array containing {values.flat[0]:g}" if values.size else "an array"
+
+
+def check_number(name, value, *, minimum=None, maximum=None, include_minimum=True, include_maximum=True,
+                 what=None, allow_array=False):
+    """A finite real number (or array of them, with ``allow_array``) within optional bounds.
+
+    Parameters
+    ----------
+    name : str
+        The argument's name, first word of the message.
+    value : float or array
+    minimum, maximum : float, optional
+        Bounds; ``include_*`` says whether the bound itself is allowed.
+    what : str, optional
+        Words for what is expected (default: built from the bounds).
+    allow_array : bool
+        Accept arrays (every entry is checked); else only a scalar.
+
+    Returns
+    -------
+    float, or float array when ``allow_array`` and ``value`` is an array.
+    """
+    if what is None:
+        what = "a finite number"
+        parts = []
+        if minimum is not None:
+            parts.append(f"{'>=' if include_minimum else '>'} {minimum:g}")
+        if maximum is not None:
+            parts.append(f"{'<=' if include_maximum else '<'} {maximum:g}")
+        if parts:
+            what += " " + " and ".join(parts)
+    arr = _float_array(name, value, what)
+    if arr.ndim and not allow_array:
+        raise GdfeTypeError(f"{name}: expected {what}, got {describe(value)}")
+    bad = ~np.isfinite(arr)
+    with np.errstate(invalid="ignore"):
+        if minimum is not None:
+            bad |= (arr < minimum) if include_minimum else (arr <= minimum)
+        if maximum is not None:
+            bad |= (arr > maximum) if include_maximum else (arr >= maximum)
+    if np.any(bad):
+        raise GdfeError(f"{name}: expected {what}, got {_first_bad(arr, bad)}")
+    return arr if arr.ndim else float(arr)
+
+
+def check_positive(name, value):
+    """A positive finite number, or an array of them; returned as float (array)."""
+    return check_number(name, value, minimum=0.0, include_minimum=False,
+                        what="a positive finite number", allow_array=True)
+
+
+def check_ratio(name, value):
+    """A contraction ratio (or array of them): finite and in (0, 1]."""
+    return check_number(name, value, minimum=0.0, maximum=1.0, include_minimum=False,
+                        what="a contraction ratio in (0, 1]", allow_array=True)
+
+
+def check_poisson(name, value):
+    """A Poisson's ratio: -1 < value < 0.5."""
+    return check_number(name, value, minimum=-1.0, maximum=0.5, include_minimum=False, include_maximum=False,
+                        what="a Poisson's ratio in (-1, 0.5)")
+
+
+def check_int(name, value, minimum=1, maximum=None):
+    """An integer (not a boolean, not a float) ``>= minimum`` (and ``<= maximum``)."""
+    what = f"an integer >= {minimum}" + (f" and <= {maximum}" if maximum is not None else "")
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
+        raise GdfeTypeError(f"{name}: expected {what}, got {describe(value)}")
+    if value < minimum or (maximum is not None and value > maximum):
+        raise GdfeError(f"{name}: expected {what}, got {int(value)}")
+    return int(value)
+
+
+def check_bool(name, value):
+    """A boolean (``True``/``False``; numbers and strings are not booleans)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise GdfeTypeError(f"{name}: expected true or false, got {describe(value)}")
+    return bool(value)
+
+
+def check_choice(name, value, options):
+    """``value`` if it is one of ``options`` (listed in the message otherwise)."""
+    options = tuple(sorted(options)) if isinstance(options, (set, frozenset)) else tuple(options)
+    try:
+        ok = value in options
+    except TypeError:  # unhashable value against a set-like
+        ok = False
+    if not ok:
+        listed = ", ".join(repr(o) for o in options)
+        raise GdfeError(f"{name}: expected one of {listed}, got {describe(value)}")
+    return value
+
+
+def check_instance(name, value, cls, what=None):
+    """``value`` if it is an instance of ``cls``; else a :class:`GdfeTypeError`."""
+    if not isinstance(value, cls):
+        if what is None:
+            classes = cls if isinstance(cls, tuple) else (cls,)
+            what = " or ".join(f"a {c.__module__.split('.')[0]}.{c.__name__}" for c in classes)
+        raise GdfeTypeError(f"{name}: expected {what}, got {type(value).__name__}")
+    return value
+
+
+def check_array(name, value, *, shape=None, ndim=None, dtype=float, finite=True, min_size=None):
+    """An array of a given shape (``-1`` for any length along an axis), finite by default.
+
+    Parameters
+    ----------
+    name : str
+    value : array-like
+    shape : tuple of int, optional
+        Expected shape; ``-1`` matches any length.
+    ndim : int, optional
+        Expected number of dimensions (when ``shape`` is not given).
+    dtype : numpy dtype
+        The array is returned with this dtype (``float``: strings and booleans refused).
+    finite : bool
+        Every entry must be finite (float arrays).
+    min_size : int, optional
+        Fewest entries along the first axis.
+    """
+    if dtype is float:
+        arr = _float_array(name, value, "an array of numbers")
+    else:
+        try:
+            arr = np.asarray(value, dtype=dtype)
+        except (TypeError, ValueError):
+            raise GdfeTypeError(f"{name}: expected an array of {np.dtype(dtype).name}, "
+                                f"got {describe(value)}") from None
+    if shape is not None:
+        shape = tuple(shape)
+        text = "(" + ", ".join("n" if s == -1 else str(s) for s in shape) + (",)" if len(shape) == 1 else ")")
+        if arr.ndim != len(shape) or any(s not in (-1, a) for s, a in zip(shape, arr.shape)):
+            raise GdfeError(f"{name}: expected an array of shape {text}, got shape {arr.shape}")
+    elif ndim is not None and arr.ndim != ndim:
+        raise GdfeError(f"{name}: expected a {ndim}-D array, got shape {arr.shape}")
+    if min_size is not None and (arr.ndim == 0 or arr.shape[0] < min_size):
+        got = arr.shape[0] if arr.ndim else 0
+        raise GdfeError(f"{name}: expected at least {min_size} entries, got {got}")
+    if finite and arr.dtype.kind == "f" and not np.isfinite(arr).all():
+        bad = np.argwhere(~np.isfinite(arr))[0]
+        where = ", ".join(map(str, bad))
+        raise GdfeError(f"{name}: expected finite numbers, got {arr[tuple(bad)]} at [{where}]")
+    return arr
+
+
+def check_file(name, path, suffixes=None, what="file"):
+    """The path of an existing file (with one of ``suffixes``, if given)."""
+    if isinstance(path, (bytes, bool)) or not isinstance(path, (str, Path)) or str(path) == "":
+        raise GdfeTypeError(f"{name}: expected the path of a {what}, got {describe(path)}")
+    path = Path(path)
+    if suffixes is not None and path.suffix.lower() not in suffixes:
+        raise GdfeError(f"{name}: expected a {' or '.join(suffixes)} {what}, got {path.name!r}")
+    if not path.is_file():
+        state = "a directory" if path.is_dir() else "not found"
+        raise GdfeFileNotFoundError(f"{name}: {what} {state}: {path}")
+    return path
+
+
+def is_finite_number(value) -> bool:
+    """Whether ``value`` is a real, finite number (not a boolean)."""
+    return (isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+            and math.isfinite(float(value)))

@@ -1,0 +1,50 @@
+"""``gdfe calibrate DATA.csv``: readings of Eq. 1 fitted to folding tests (:func:`gdfe.fit_reading`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from gdfe._validation import check_int, check_positive
+from gdfe.calibration import READINGS
+from gdfe.cli._common import emit
+
+__all__ = ["register", "run"]
+
+
+def register(sub):
+    p = sub.add_parser("calibrate", help="fit Eq. 1 (K) to folding tests",
+                       description="Fit a reading of Eq. 1 to folding tests (CSV with L_mm, d_mm, h_mm, alpha_rad): "
+                                   "eq1 = K sqrt(h/d^3) L as printed; eq1-d1 = K sqrt(h/d) L; "
+                                   "power = c (L/h) (h/d)^p.")
+    p.add_argument("data", type=Path, help="CSV of folding tests")
+    p.add_argument("--model", choices=READINGS + ("all",), default="eq1",
+                   help="reading of Eq. 1 (default eq1, as printed)")
+    p.add_argument("--boot", type=int, default=2000, help="bootstrap resamples for the 95 %% CI (default 2000)")
+    p.add_argument("--d", type=float, default=None, help="also print Eq. 3's R for this passive thickness [mm]")
+    p.add_argument("--json", action="store_true", help="print the fit as JSON")
+    p.set_defaults(func=run)
+
+
+def run(args):
+    import gdfe
+
+    check_int("--boot", args.boot, minimum=0)
+    tests = gdfe.load_folding_tests(args.data)
+    if args.d is not None:
+        check_positive("--d", args.d)
+        h = float(tests.h.mean())
+    models = READINGS if args.model == "all" else (args.model,)
+    out = []
+    text = []
+    for m in models:
+        f = gdfe.fit_reading(tests, m, n_boot=args.boot)
+        d = f.as_dict()
+        d.pop("residuals")
+        block = f.text()
+        if args.d is not None:
+            d["R_at_d"] = {"d_mm": args.d, "h_mm": h, "R": float(f.ratio(args.d, h))}
+            block += f"\nR      {d['R_at_d']['R']:.4f} at d = {args.d:g} mm (Eq. 3 of this reading, h = {h:g} mm)"
+        out.append(d)
+        text.append(block)
+    emit(out[0] if len(out) == 1 else out, args.json, "\n\n".join(text))
+    return 0

@@ -1,0 +1,73 @@
+"""``gdfe hinge``: the paper's folding specimen, simulated and compared with Eq. 1."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from gdfe import paper
+from gdfe._validation import GdfeError, check_int
+from gdfe.cli._common import emit, exit_status, solve, solver_args, write_outputs
+
+__all__ = ["register", "run"]
+
+
+def register(sub):
+    p = sub.add_parser("hinge", help="simulate the paper's hinge specimen (two rigid panels, one hinge)",
+                       description="Simulate the paper's folding specimen and compare with Eq. 1.")
+    p.add_argument("--length", "-L", type=float, required=True, help="hinge (fold) width L [mm]")
+    p.add_argument("--d", type=float, help="passive-layer thickness d [mm] (R from Eq. 3)")
+    p.add_argument("--h", type=float, default=paper.H, help=f"active-film thickness h [mm] (default {paper.H:g})")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--K", type=float, default=None, help=f"coefficient K of Eq. 1 (default {paper.K:g})")
+    g.add_argument("--R", type=float, default=None, help="contraction ratio, overriding Eq. 3")
+    p.add_argument("--width", type=float, default=0.5, help="strip width [mm] (default 0.5)")
+    p.add_argument("--panel-length", type=float, default=1.0, help="length of each panel [mm]")
+    p.add_argument("--cells", type=int, default=16, help="cells across the hinge (default 16)")
+    p.add_argument("--nz", type=int, default=1, help="cell layers through the film (default 1)")
+    p.add_argument("--isotropy", type=float, default=1.0,
+                   help="transverse/longitudinal shrink: 1 isotropic (default), 0 uniaxial")
+    solver_args(p)
+    p.add_argument("--out", type=Path, help="write the VTU series, a PNG and result.json here")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.set_defaults(func=run)
+
+
+def run(args):
+    import gdfe
+
+    if args.d is None and args.R is None:
+        raise GdfeError("give --d (passive thickness, mm) or --R (contraction ratio)")
+    K = gdfe.PAPER_K if args.K is None else args.K
+    check_int("--cells", args.cells)
+    design = gdfe.hinge(args.length, d=args.d, h=args.h, K=K, R=args.R, width=args.width,
+                        panel_length=args.panel_length, cell_size=args.length / args.cells, nz=args.nz,
+                        isotropy=args.isotropy)
+    res = solve(design, args)
+    alpha = gdfe.fold_angle(res)
+    R = float(design.meta["R"])
+    out = {
+        "alpha_rad": alpha,
+        "alpha_eq1_rad": float(gdfe.Calibration(K=K, h=args.h).alpha(args.length, args.d, args.h))
+        if args.d is not None else None,
+        "alpha_eq2_rad": float(gdfe.angle_from_ratio(R, args.length, args.h)),
+        "R": R, "K": K if args.R is None else None, "L_mm": args.length, "d_mm": args.d, "h_mm": args.h,
+        "width_mm": args.width, "isotropy": args.isotropy,
+        "iterations": res.iterations, "converged": res.converged, "residual": res.residual,
+        "seconds": res.seconds, "n_elements": design.n_cells, "method": res.method,
+    }
+    ref = out["alpha_eq1_rad"] if out["alpha_eq1_rad"] is not None else out["alpha_eq2_rad"]
+    out["error_rad"] = alpha - ref
+    if args.out:
+        out["title"] = f"hinge L={args.length:g} mm, alpha={alpha:.4f} rad"
+        out["files"] = write_outputs(res, args.out, "hinge", out)
+    text = (f"hinge L={args.length:g} mm, d={args.d} mm, h={args.h:g} mm, R={R:.4f}\n"
+            f"  GDFE fold angle  {alpha:.4f} rad ({math.degrees(alpha):.1f} deg)\n"
+            + (f"  Eq. 1            {out['alpha_eq1_rad']:.4f} rad (error {out['error_rad']:+.4f})\n"
+               if out["alpha_eq1_rad"] is not None else "")
+            + f"  Eq. 2 (1-R)L/h   {out['alpha_eq2_rad']:.4f} rad\n"
+            f"  {'converged' if res.converged else 'NOT CONVERGED'} in {res.iterations} iterations "
+            f"(residual {res.residual:.1e}), {res.seconds:.2f} s, {design.n_cells} elements"
+            + (f"\n  wrote {args.out}/hinge.pvd (open in ParaView), hinge.png, result.json" if args.out else ""))
+    emit(out, args.json, text)
+    return exit_status(res)

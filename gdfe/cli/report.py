@@ -1,0 +1,36 @@
+"""``gdfe report``: every study run, and an HTML validation report of them (:mod:`studies.validation_report`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from gdfe.cli._common import emit
+
+__all__ = ["register", "run"]
+
+
+def register(sub):
+    from studies import RESOLUTIONS, STUDIES
+
+    p = sub.add_parser("report", help="run every study and write an HTML validation report",
+                       description="Run every study and write DIR/index.html with figures, paper-vs-ours "
+                                   "numbers, regression tolerances and software versions.")
+    p.add_argument("--out", type=Path, required=True, help="output directory")
+    p.add_argument("--resolution", choices=RESOLUTIONS, default="default")
+    p.add_argument("--only", nargs="+", choices=list(STUDIES), metavar="NAME", help="run only these studies")
+    p.add_argument("--json", action="store_true", help="print the report's summary as JSON")
+    p.set_defaults(func=run)
+
+
+def run(args):
+    from studies import STUDIES
+    from studies.validation_report import build_report
+
+    names = args.only or list(STUDIES)
+    summary = build_report(args.out, resolution=args.resolution, names=names)
+    lines = [f"wrote {summary['index']}"]
+    for s in summary["studies"]:
+        lines.append(f"  {s['name']:<16} {s['status']:<8} {s.get('seconds', 0):6.1f} s  "
+                     f"{s.get('passed', 0)}/{s.get('headlines', 0)} headlines pass")
+    emit(summary, args.json, "\n".join(lines))
+    return 0 if summary["ok"] else 1

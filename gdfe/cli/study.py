@@ -1,0 +1,38 @@
+"""``gdfe study NAME``: run one study of :mod:`studies` (writes a PNG and a JSON)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from gdfe._validation import GdfeError
+from gdfe.cli._common import emit
+
+__all__ = ["register", "run"]
+
+
+def register(sub):
+    from studies import RESOLUTIONS, STUDIES
+
+    p = sub.add_parser("study", help="run one study of a paper figure (writes a PNG and a JSON)",
+                       description="Run one study: " + ", ".join(STUDIES) + ".")
+    p.add_argument("name", choices=list(STUDIES), metavar="NAME", help="study: " + ", ".join(STUDIES))
+    p.add_argument("--out", type=Path, default=None, help="output directory (default out/NAME)")
+    p.add_argument("--resolution", choices=RESOLUTIONS, default="default")
+    p.add_argument("--json", action="store_true", help="print the numbers as JSON")
+    p.set_defaults(func=run)
+
+
+def run(args):
+    import studies
+    from studies._common import run_and_print
+
+    try:
+        module = studies.load(args.name)
+    except ModuleNotFoundError as exc:  # a study needing an extra that is not installed
+        raise GdfeError(f"study {args.name} ({studies.STUDIES[args.name]}) is not available: {exc}") from None
+    out = args.out if args.out is not None else Path("out") / args.name
+    if not hasattr(module, "NAME"):  # a study without the shared plumbing
+        result = module.run(resolution=args.resolution, out=out)
+        emit(result, args.json, f"{args.name}: wrote {out}")
+        return 0
+    return run_and_print(module, args.resolution, out, args.json)

@@ -1,0 +1,126 @@
+"""Scans: reading a measured shape from a file.
+
+A measured shape is a point cloud [mm]: a ``.csv`` of columns x, y, z (with or without a
+header line), or a ``.ply``, ``.obj`` or ``.vtu`` mesh read with meshio (a VTU may carry the
+hexahedra of a volume mesh, e.g. one written by ``gdfe simulate``). Every problem with the
+file, including what meshio raises (or the ``SystemExit`` it ends with on a corrupt file), is
+reported as a :class:`gdfe._validation.GdfeError` naming the file.
+
+Lengths in mm.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import logging
+
+import numpy as np
+
+from gdfe._validation import GdfeError, check_file
+
+__all__ = ["load_measured", "MEASURED_SUFFIXES"]
+
+log = logging.getLogger(__name__)
+
+#: The file suffixes :func:`load_measured` reads.
+MEASURED_SUFFIXES = (".ply", ".vtu", ".obj", ".csv")
+
+
+def load_measured(path, *, name="path"):
+    """Read a measured shape.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.csv`` (columns x, y, z, with or without a header), or ``.ply``, ``.obj``, ``.vtu``
+        (read with meshio).
+    name : str
+        The argument's name in error messages.
+
+    Returns
+    -------
+    points : (k, 3) float array [mm]
+    cells : (m, 8) int array or None
+        Hexahedra of a volume mesh, if any.
+
+    Raises
+    ------
+    GdfeFileNotFoundError
+        No such file.
+    GdfeError
+        Another suffix, or a file that cannot be read (naming it, and the line for a CSV).
+    """
+    path = check_file(name, path, suffixes=MEASURED_SUFFIXES, what="measured shape")
+    suffix = path.suffix.lower()
+    if suffix == ".csv":
+        return _read_csv(path), None
+    mesh = _read_mesh(path)
+    pts = np.asarray(mesh.points, float)
+    if pts.ndim != 2 or pts.shape[0] == 0:
+        raise GdfeError(f"{path.name}: expected points, got none")
+    if pts.shape[1] not in (2, 3):
+        raise GdfeError(f"{path.name}: expected points with 2 or 3 coordinates, got {pts.shape[1]}")
+    if not np.isfinite(pts).all():
+        raise GdfeError(f"{path.name}: expected finite coordinates, got NaN or inf")
+    if pts.shape[1] == 2:
+        pts = np.column_stack([pts, np.zeros(len(pts))])
+    hexes = [c.data for c in mesh.cells if c.type == "hexahedron"]
+    return pts[:, :3], (np.concatenate(hexes) if hexes else None)
+
+
+def _read_mesh(path):
+    """``meshio.read(path)``, its failures (and what it prints) turned into one :class:`GdfeError`."""
+    import meshio
+
+    fmt = path.suffix[1:].upper()
+    said = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said):
+            mesh = meshio.read(path)
+    except (Exception, SystemExit) as exc:  # meshio raises many kinds, and exits on a corrupt file
+        detail = " ".join(line.strip() for line in said.getvalue().splitlines() if line.strip())
+        if not isinstance(exc, SystemExit):
+            detail = f"{detail} {type(exc).__name__}: {exc}".strip()
+        raise GdfeError(f"{path.name}: expected a readable {fmt} file, got one meshio cannot read"
+                        + (f" ({detail})" if detail else "")) from None
+    if said.getvalue().strip():
+        log.warning("%s: meshio: %s", path.name, said.getvalue().strip())
+    return mesh
+
+
+def _read_csv(path):
+    """Points of a CSV file: columns x, y, z (by a header's names, else the first three)."""
+    import csv
+
+    try:
+        with path.open(newline="") as f:
+            rows = [r for r in csv.reader(f) if r and any(c.strip() for c in r)]
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise GdfeError(f"{path.name}: expected a text file of comma-separated x, y, z, got "
+                        f"{type(exc).__name__}: {exc}") from None
+    if not rows:
+        raise GdfeError(f"{path.name}: expected points, got none")
+    header = None
+    try:
+        [float(c) for c in rows[0][:3]]
+    except ValueError:
+        header = [c.strip().lower() for c in rows[0]]
+        rows = rows[1:]
+    cols = [0, 1, 2]
+    if header is not None:
+        if not all(a in header for a in ("x", "y", "z")):
+            raise GdfeError(f"{path.name}: expected columns x, y, z, got {', '.join(header)}")
+        cols = [header.index(a) for a in ("x", "y", "z")]
+    pts = np.empty((len(rows), 3))
+    for i, r in enumerate(rows):
+        line = i + (2 if header is not None else 1)
+        try:
+            pts[i] = [float(r[c]) for c in cols]
+        except (ValueError, IndexError):
+            raise GdfeError(f"{path.name}: line {line}: expected three numbers x, y, z, got {r}") from None
+        if not np.all(np.isfinite(pts[i])):
+            raise GdfeError(f"{path.name}: line {line}: expected finite coordinates, got {r}")
+    if len(pts) < 4:
+        raise GdfeError(f"{path.name}: expected at least 4 points, got {len(pts)}")
+    return pts

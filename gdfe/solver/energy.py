@@ -1,0 +1,367 @@
+"""The GDFE energy (paper Eq. 5) and its two local-global steps.
+
+With ``D`` the 8x8 mean-centring matrix of Eq. 4 (:data:`D8`), the energy is
+
+    E(V, {Q_i}) = sum_i  w_i || D V_i - Q_i P_i ||^2 ,
+
+where ``V_i`` are the eight current vertices of cell ``i``, ``P_i`` its contracted rest
+shape (centred, :func:`rest_shapes`), ``Q_i`` a rotation and ``w_i`` the cell volume.
+For fixed ``V`` the best ``Q_i`` is the rotation closest to ``S_i = (D V_i)^T P_i``
+(:func:`rotations`, the **orientation step**); for fixed ``Q`` the best ``V`` solves
+``A^T A V = A^T p`` (:func:`system_matrix`, the **assembly step**), an ``n x n`` sparse
+system shared by x, y and z and factorised once per design.
+
+This module holds those pieces and :class:`LocalGlobal`, the two steps for one design,
+with the data they hand on: :class:`RestState` (the constants of one activation),
+:class:`Orientation`, :class:`Assembly`, and :class:`SolveStats`, what a solve returns.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import time
+
+import numpy as np
+import scipy.sparse as sp
+
+from gdfe._validation import check_instance
+from gdfe.design import Design, Material
+from gdfe.solver.linalg import factorise
+
+__all__ = ["D8", "rest_shapes", "system_matrix", "rotations", "expmap", "energy", "RestState",
+           "Orientation", "Assembly", "SolveStats", "LocalGlobal"]
+
+#: The mean-centring matrix D of Eq. 4.
+D8 = np.eye(8) - 1.0 / 8.0
+
+
+def rest_shapes(design, activation=1.0):
+    """Contracted rest shape of every cell, mean-centred.
+
+    Parameters
+    ----------
+    design : Design
+    activation : float
+        Fraction of the contraction applied: the free face shrinks by ``1 - a (1 - R)``.
+
+    Returns
+    -------
+    (m, 8, 3) float array [mm]
+    """
+    mesh = design.mesh
+    X = mesh.points[mesh.cells]  # (m, 8, 3)
+    t = X[..., 2] / design.h  # height in the film, 0 (bottom) .. 1 (top)
+    top, bottom = design.face_contraction()
+    # linear through the film, from the bottom face's contraction to the top face's
+    shrink = activation * (top[:, None] * t + bottom[:, None] * (1.0 - t))
+    sx = 1.0 - shrink
+    sy = 1.0 - design.isotropy * shrink
+    c = X.mean(axis=1, keepdims=True)
+    P = X - c
+    P[..., 0] *= sx
+    P[..., 1] *= sy
+    return P - P.mean(axis=1, keepdims=True)
+
+
+def system_matrix(design):
+    """The assembled ``A^T A = sum_i w_i S_i^T D S_i`` (n x n, symmetric, rows sum to 0) [mm^3]."""
+    cells = design.mesh.cells
+    w = design.mesh.cell_volumes()
+    rows = np.repeat(cells, 8, axis=1).ravel()
+    cols = np.tile(cells, (1, 8)).ravel()
+    data = (w[:, None, None] * D8[None]).ravel()
+    n = design.mesh.n_points
+    return sp.csr_matrix((data, (rows, cols)), shape=(n, n))
+
+
+def _det3(A):
+    return (A[:, 0, 0] * (A[:, 1, 1] * A[:, 2, 2] - A[:, 1, 2] * A[:, 2, 1])
+            - A[:, 0, 1] * (A[:, 1, 0] * A[:, 2, 2] - A[:, 1, 2] * A[:, 2, 0])
+            + A[:, 0, 2] * (A[:, 1, 0] * A[:, 2, 1] - A[:, 1, 1] * A[:, 2, 0]))
+
+
+def rotations(S, tol=1e-12, max_iter=30):
+    """Closest rotations to a batch of 3x3 matrices (the polar factor, made proper).
+
+    Matrices with a positive determinant go through the scaled Newton iteration for the
+    polar factor (quadratic convergence, all elements at once, each stopping when its
+    own update is below ``tol``); the few with ``det(S) <= 0`` (a cell turned inside out)
+    go through an SVD whose smallest singular direction is flipped, which gives the
+    closest proper rotation.
+
+    Parameters
+    ----------
+    S : (m, 3, 3) float array
+
+    Returns
+    -------
+    Q : (m, 3, 3) float array
+        The rotations.
+    trace : (m,) float array
+        ``tr(Q^T S)``, the sum of the signed singular values.
+    """
+    Q = np.empty_like(S)
+    scale = np.sqrt(np.einsum("mij,mij->m", S, S))
+    scale = np.where(scale > 0, scale, 1.0)
+    A = S / scale[:, None, None]
+    det = _det3(A)
+    good = det > 1e-10
+    idx = np.nonzero(good)[0]
+    # the nine entries as rows of a (9, k) array: the iteration runs on contiguous vectors
+    X = np.ascontiguousarray(A[idx].reshape(-1, 9).T)
+    out = np.empty_like(X)
+    active = np.arange(idx.size)
+    C = np.empty_like(X)
+    for _ in range(max_iter):
+        if not active.size:
+            break
+        a, b, c, d, e, f, g, h, i = X
+        C[0], C[1], C[2] = e * i - f * h, f * g - d * i, d * h - e * g
+        C[3], C[4], C[5] = c * h - b * i, a * i - c * g, b * g - a * h
+        C[6], C[7], C[8] = b * f - c * e, c * d - a * f, a * e - b * d
+        dt = a * C[0] + b * C[1] + c * C[2]
+        gm = 1.0 / np.cbrt(np.abs(dt))
+        Xn = 0.5 * (gm * X + C / (gm * dt))
+        done = np.abs(Xn - X).max(axis=0) < tol
+        if done.all():
+            out[:, active] = Xn
+            active = active[:0]
+            break
+        if done.any():
+            out[:, active[done]] = Xn[:, done]
+            keep = ~done
+            active, X = active[keep], Xn[:, keep]
+            C = np.empty_like(X)
+        else:
+            X = Xn
+    if active.size:  # not converged within max_iter: keep the last iterate
+        out[:, active] = X
+    Q[idx] = out.T.reshape(-1, 3, 3)
+    bad = np.nonzero(~good)[0]
+    if bad.size:
+        U, _, Vt = np.linalg.svd(S[bad])
+        dd = np.linalg.det(U) * np.linalg.det(Vt)
+        U[:, :, 2] *= dd[:, None]
+        Q[bad] = U @ Vt
+    return Q, np.einsum("mij,mij->m", Q, S)
+
+
+def expmap(omega):
+    """Rotation matrices ``exp([omega]x)``, ``(m, 3, 3)``, of rotation vectors ``omega`` ``(m, 3)`` [rad]."""
+    th = np.linalg.norm(omega, axis=1)
+    k = omega / np.where(th > 0, th, 1.0)[:, None]
+    Kx = np.zeros((omega.shape[0], 3, 3))
+    Kx[:, 0, 1], Kx[:, 0, 2] = -k[:, 2], k[:, 1]
+    Kx[:, 1, 0], Kx[:, 1, 2] = k[:, 2], -k[:, 0]
+    Kx[:, 2, 0], Kx[:, 2, 1] = -k[:, 1], k[:, 0]
+    s, c = np.sin(th)[:, None, None], np.cos(th)[:, None, None]
+    return np.eye(3) + s * Kx + (1 - c) * (Kx @ Kx)
+
+
+def energy(points, design, activation=1.0):
+    """Energy of Eq. 5 at ``points`` ``(n, 3)`` [mm] with the optimal rotations [mm^5]."""
+    return LocalGlobal(design).energy(points, activation)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class RestState:
+    """The constants of one activation: the rest shapes, and (made on first use) the Hessian's.
+
+    Attributes
+    ----------
+    activation : float
+    P : (m, 8, 3) float array [mm]
+        The rest shapes, :func:`rest_shapes`.
+    Psq : (m,) float array [mm^2]
+        ``|P_i|^2``, the sum of squares of each rest shape.
+    """
+
+    activation: float
+    P: np.ndarray
+    Psq: np.ndarray
+
+    @classmethod
+    def of(cls, design, activation):
+        P = rest_shapes(design, activation)
+        return cls(float(activation), P, np.einsum("mkj,mkj->m", P, P))
+
+    @functools.cached_property
+    def M0is(self):
+        """``M0^{-1/2}`` per cell, ``(m, 3, 3)``, with ``M0 = tr(C) I - C`` and ``C = P^T P``."""
+        P = self.P
+        C = np.einsum("mki,mkj->mij", P, P)
+        M0 = np.trace(C, axis1=1, axis2=2)[:, None, None] * np.eye(3) - C
+        lam0, W0 = np.linalg.eigh(M0)
+        return np.einsum("mij,mj,mkj->mik", W0, 1.0 / np.sqrt(np.maximum(lam0, 1e-300)), W0)
+
+    @functools.cached_property
+    def Kx(self):
+        """The cross-product matrices ``[p_k]x`` of the rest-shape vertices, ``(m, 8, 3, 3)``."""
+        P = self.P
+        Kx = np.zeros(P.shape + (3,))
+        Kx[..., 0, 1], Kx[..., 0, 2] = -P[..., 2], P[..., 1]
+        Kx[..., 1, 0], Kx[..., 1, 2] = P[..., 2], -P[..., 0]
+        Kx[..., 2, 0], Kx[..., 2, 1] = -P[..., 1], P[..., 0]
+        return Kx
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Orientation:
+    """Outcome of the orientation step at vertices ``V``.
+
+    Attributes
+    ----------
+    Q : (m, 3, 3) float array
+        The optimal rotation of every cell.
+    S : (m, 3, 3) float array [mm^2]
+        The cross-covariances ``S_i = (D V_i)^T P_i`` they were taken from.
+    energy : float
+        Energy of Eq. 5 at ``V`` with these rotations [mm^5].
+    """
+
+    Q: np.ndarray
+    S: np.ndarray
+    energy: float
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Assembly:
+    """Outcome of the assembly step for rotations ``Q``.
+
+    Attributes
+    ----------
+    V : (n, 3) float array [mm]
+        The vertices minimising Eq. 5 for ``Q``, one vertex held.
+    b : (n, 3) float array [mm^4]
+        The right-hand side ``A^T p`` it solved with (before the held vertex is removed);
+        the energy's gradient at any ``V`` for these rotations is ``2 (L V - b)``.
+    """
+
+    V: np.ndarray
+    b: np.ndarray
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class SolveStats:
+    """Outcome of one solve (:meth:`gdfe.solver.Solver.solve`).
+
+    Attributes
+    ----------
+    points : (n, 3) float array [mm]
+        The final shape (the plain step's result from the last iterate).
+    converged : bool
+        Whether the tolerance was met within ``max_iter`` iterations.
+    iterations : int
+        Assembly steps (sparse solves).
+    residual : float
+        The plain step's largest vertex move at the end, in units of h.
+    energies : list of float
+        Energy [mm^5] of each accepted iterate, then of ``points``.
+    cg_iterations : int
+        Conjugate-gradient iterations of ``method="newton-cg"`` (0 for the others).
+    """
+
+    points: np.ndarray
+    converged: bool
+    iterations: int
+    residual: float
+    energies: list
+    cg_iterations: int = 0
+
+
+class LocalGlobal:
+    """The two steps of the local-global solver for one design, with its factorised system.
+
+    Parameters
+    ----------
+    design : Design
+
+    Attributes
+    ----------
+    design : Design
+    cells : (m, 8) int array
+    w : (m,) float array [mm^3]
+        Cell volumes.
+    n : int
+        Number of vertices.
+    L : (n, n) sparse matrix
+        :func:`system_matrix`.
+    pin : int
+        The vertex held in place (a vertex of the first rigid cell, else of cell 0): it
+        fixes the translations, the null space of ``L``, without changing the shape.
+    free : (n - 1,) int array
+        The other vertices.
+    L_ff, L_fp : sparse matrices
+        ``L`` restricted to the free rows, and the free and pinned columns.
+    factor
+        ``L_ff`` factorised (:func:`gdfe.solver.factorise`): ``factor.solve(b)``.
+    B : (n, 8m) sparse matrix
+        The scatter ``b = B @ T.reshape(8m, 3)``, ``B[v, 8i + k] = w_i`` where ``cells[i, k] == v``.
+    timings : dict
+        Seconds spent so far in the factorisation and in the orientation and assembly
+        steps (the solve methods add theirs).
+    """
+
+    def __init__(self, design):
+        check_instance("design", design, Design)
+        self.design = design
+        mesh = design.mesh
+        self.cells = mesh.cells
+        self.w = mesh.cell_volumes()
+        self.n = mesh.n_points
+        m = mesh.n_cells
+        t0 = time.perf_counter()
+        self.L = system_matrix(design).tocsc()
+        rigid = np.nonzero(design.material == Material.RIGID)[0]
+        self.pin = int(self.cells[rigid[0] if rigid.size else 0, 0])
+        self.free = np.setdiff1d(np.arange(self.n), [self.pin])
+        self.L_ff = self.L[self.free][:, self.free].tocsc()
+        self.L_fp = self.L[self.free][:, [self.pin]]
+        self.factor = factorise(self.L_ff)
+        self.B = sp.csr_matrix((np.repeat(self.w, 8), (self.cells.ravel(), np.arange(8 * m))),
+                               shape=(self.n, 8 * m))
+        self.timings = {"factorise": time.perf_counter() - t0, "orientation": 0.0, "assembly": 0.0}
+        self._rest_cache = None
+
+    def rest(self, activation=1.0) -> RestState:
+        """The :class:`RestState` of ``activation`` (the last one is kept for the next call)."""
+        cached = self._rest_cache
+        if cached is None or cached.activation != float(activation):
+            cached = self._rest_cache = RestState.of(self.design, activation)
+        return cached
+
+    def orient(self, V, activation=1.0) -> Orientation:
+        """Orientation step: the optimal rotations at ``V`` ``(n, 3)`` [mm] and the energy there."""
+        t0 = time.perf_counter()
+        P = self.rest(activation).P
+        X = V[self.cells]
+        X -= X.mean(axis=1, keepdims=True)
+        S = np.einsum("mki,mkj->mij", X, P)
+        Q, _ = rotations(S)
+        # sum of squares of the misfit itself, not |X|^2 + |P|^2 - 2 tr(Q^T S), which
+        # cancels to round-off when a cell reaches its rest shape
+        X -= np.matmul(P, Q.transpose(0, 2, 1))
+        E = float(self.w @ np.einsum("mki,mki->m", X, X))
+        self.timings["orientation"] += time.perf_counter() - t0
+        return Orientation(Q, S, max(E, 0.0))
+
+    def assemble(self, Q, V_pin, activation=1.0) -> Assembly:
+        """Assembly step: the vertices minimising Eq. 5 for rotations ``Q`` ``(m, 3, 3)``.
+
+        The vertex :attr:`pin` is held at ``V_pin`` ``(3,)`` [mm].
+        """
+        t0 = time.perf_counter()
+        P = self.rest(activation).P
+        T = np.einsum("mij,mkj->mki", Q, P).reshape(-1, 3)
+        b = self.B @ T
+        rhs = b[self.free] - self.L_fp @ V_pin[None, :]
+        V = np.empty((self.n, 3))
+        V[self.free] = self.factor.solve(np.asfortranarray(rhs))
+        V[self.pin] = V_pin
+        self.timings["assembly"] += time.perf_counter() - t0
+        return Assembly(V, b)
+
+    def energy(self, V, activation=1.0):
+        """Energy of Eq. 5 at ``V`` ``(n, 3)`` [mm] with the optimal rotations [mm^5]."""
+        return self.orient(np.asarray(V, float), activation).energy

@@ -1,0 +1,124 @@
+"""The solver of one design and its methods: :class:`Solver`, :data:`METHODS`, :func:`auto_method`.
+
+A :class:`Solver` holds one design's factorised system (:class:`LocalGlobal`) and
+minimises Eq. 5 with the method asked for: damped Newton with the 3n x 3n Hessian
+factorised (``"newton"``) or solved by preconditioned CG (``"newton-cg"``)
+(:mod:`gdfe.solver.newton`), or the paper's alternation, plain or Anderson-accelerated
+(:mod:`gdfe.solver.alternation`). ``"auto"`` picks a Newton method by the design's size.
+"""
+
+from __future__ import annotations
+
+import functools
+
+from gdfe._validation import check_array, check_choice, check_int, check_number
+from gdfe.solver.alternation import solve_alternation
+from gdfe.solver.energy import LocalGlobal, SolveStats
+from gdfe.solver.linearised import linearised_start
+from gdfe.solver.newton import ReducedHessian, cg_directions, factorised_directions, solve_newton
+
+__all__ = ["METHODS", "AUTO_NEWTON_CELLS", "auto_method", "Solver"]
+
+#: Methods of :func:`gdfe.simulate` and :meth:`Solver.solve`.
+METHODS = ("newton", "newton-cg", "auto", "anderson", "plain")
+#: Largest design (cells) for which ``method="auto"`` factorises the full Hessian; above
+#: it ``"newton-cg"`` is the faster on every design ``gdfe bench`` times, the Figure 6
+#: hinges included (docs/bench/bench.txt).
+AUTO_NEWTON_CELLS = 64
+
+
+def auto_method(design):
+    """The method ``"auto"`` picks for ``design``: ``"newton"`` or ``"newton-cg"``."""
+    return "newton" if design.n_cells <= AUTO_NEWTON_CELLS else "newton-cg"
+
+
+def check_tol(tol):
+    """``tol`` as a positive finite float, else a :class:`gdfe._validation.GdfeError`."""
+    return check_number("tol", tol, minimum=0.0, include_minimum=False, what="a positive finite number")
+
+
+class Solver(LocalGlobal):
+    """A GDFE solver for one design: the factorised system, reused for every solve.
+
+    Parameters
+    ----------
+    design : Design
+
+    Attributes
+    ----------
+    reduced_hessian : ReducedHessian
+        The Hessian's mesh-only constants, made on first use (by a Newton method or the CG
+        linearised start).
+
+    See :class:`LocalGlobal` for the factorised system (``factor``, ``L_ff``, ``free``,
+    ``pin``), the steps (:meth:`orient`, :meth:`assemble`) and ``timings``.
+    """
+
+    @functools.cached_property
+    def reduced_hessian(self) -> ReducedHessian:
+        """The Hessian's mesh-only constants (made on first use)."""
+        return ReducedHessian(self)
+
+    def hessian(self, Q, S, activation=1.0, mu=0.0):
+        """Positive semi-definite Hessian of the rotation-reduced energy, plus ``mu`` times ``2 L``.
+
+        Parameters
+        ----------
+        Q, S : (m, 3, 3) float arrays
+            Rotations and cross-covariances of an orientation step (:class:`Orientation`).
+        activation : float
+        mu : float
+            Damping.
+
+        Returns
+        -------
+        (3n, 3n) sparse matrix
+            Unknowns ordered vertex-major (``3 v + c``); see :class:`ReducedHessian`.
+        """
+        return self.reduced_hessian.matrix(Q, S, self.rest(activation), mu=mu)
+
+    def linearised_start(self, V, activation=1.0):
+        """Shape ``(n, 3)`` [mm] from the small-rotation solution of Eq. 5 around the flat ``V``.
+
+        See :func:`gdfe.solver.linearised.linearised_start`.
+        """
+        V = check_array("V", V, shape=(self.n, 3))
+        return linearised_start(self, self.reduced_hessian, V, activation)
+
+    def solve(self, V0, activation=1.0, method="newton", tol=1e-7, max_iter=200, history=6) -> SolveStats:
+        """Minimise Eq. 5 from ``V0``.
+
+        Parameters
+        ----------
+        V0 : (n, 3) float array [mm]
+            Start; its pinned vertex (:attr:`pin`) stays where it is.
+        activation : float
+            Fraction of the contraction applied, 0 .. 1.
+        method : {"newton", "newton-cg", "auto", "anderson", "plain"}
+            See :func:`gdfe.simulate`.
+        tol : float
+            Tolerance on the plain step's residual, in units of h.
+        max_iter : int
+            Limit on the assembly steps.
+        history : int
+            Anderson history length.
+
+        Returns
+        -------
+        SolveStats
+        """
+        method = check_choice("method", method, METHODS)
+        V0 = check_array("V0", V0, shape=(self.n, 3))
+        tol = check_tol(tol)
+        max_iter = check_int("max_iter", max_iter)
+        history = check_int("history", history)
+        if method == "auto":
+            method = auto_method(self.design)
+        if method == "newton":
+            directions = factorised_directions(self.reduced_hessian, self.rest(activation))
+            return solve_newton(self, V0, activation, tol, max_iter, directions)
+        if method == "newton-cg":
+            directions = cg_directions(self.reduced_hessian, self.rest(activation))
+            return solve_newton(self, V0, activation, tol, max_iter, directions, alphas=(1.0, 0.5, 0.25))
+        return solve_alternation(self, V0, activation, tol, max_iter, anderson=method == "anderson",
+                                 history=history)

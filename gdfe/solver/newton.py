@@ -1,0 +1,427 @@
+"""Damped Newton on the rotation-reduced energy: ``method="newton"`` and ``method="newton-cg"``.
+
+With every rotation optimal, Eq. 5 is a function of the vertices alone. This module holds
+its Hessian (:class:`ReducedHessian`: the per-step blocks, and the mesh-only constants
+``L (x) I3``, the sparsity of the Jacobian ``J`` and the coarse space of the CG
+preconditioner), the damped-Newton outer loop (:func:`solve_newton`) and the two ways to
+compute its steps: the 3n x 3n Hessian factorised (:func:`factorised_directions`) or
+preconditioned conjugate gradients (:func:`cg_directions`, :func:`pcg`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import logging
+import time
+
+import numpy as np
+import scipy.sparse as sp
+
+from gdfe.solver.energy import SolveStats
+from gdfe.solver.linalg import factorise
+
+__all__ = ["MU_MIN", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "ReducedHessian", "CoarseSpace", "pcg",
+           "solve_newton", "factorised_directions", "cg_directions"]
+
+log = logging.getLogger(__name__)
+
+#: Smallest damping of ``method="newton-cg"`` (times 2 L): it also keeps the rigid rotation
+#: about the pinned vertex, a null direction of the energy, out of the steps.
+MU_MIN = 1e-6
+#: A Newton solve also needs its estimated distance to the solution below
+#: ``STEP_TOL_FACTOR * tol`` (units of h); see :func:`solve_newton`.
+STEP_TOL_FACTOR = 10.0
+#: Relative rise of the energy a full Newton step may cause and still be taken (round-off).
+ENERGY_ROUNDOFF = 1e-13
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Pattern:
+    """The CSR structure of a sparse matrix whose values are a permutation of a flat array."""
+
+    order: np.ndarray  # value k of the matrix is entry order[k] of the flat array
+    indices: np.ndarray
+    indptr: np.ndarray
+    shape: tuple
+
+    def fill(self, values):
+        return sp.csr_matrix((values[self.order], self.indices, self.indptr), shape=self.shape)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class CoarseSpace:
+    """The coarse grid of the ``"newton-cg"`` preconditioner.
+
+    Attributes
+    ----------
+    Z : (n, k) sparse matrix
+        Bilinear interpolation from the coarse grid, per layer of vertices; the pinned
+        vertex's row is zero.
+    Z3 : (3n, 3k) sparse matrix
+        ``Z (x) I3``.
+    Lc3 : (3k, 3k) sparse matrix
+        ``(Z_f^T L_ff Z_f) (x) I3``, the coarse n x n system for the three coordinates.
+    """
+
+    Z: sp.csr_matrix
+    Z3: sp.csr_matrix
+    Lc3: sp.csc_matrix
+
+
+class ReducedHessian:
+    """The Hessian of the rotation-reduced energy on one design's mesh.
+
+    With every rotation optimal, the energy of a cell is ``w (|X|^2 + |P|^2 - 2 tr(Q^T S))``
+    and its gradient ``2 w (x_k - Q p_k)``. The rotation moves with the vertices by
+    ``Q^T dQ = [omega]x``, ``omega = M^{-1} sum_l p_l x Q^T dx_l`` with ``M = tr(Y) I - Y``
+    and ``Y = Q^T S`` (the derivative of the polar factor). Hence the cell Hessian in its
+    24 vertex coordinates is ``2 w (D (x) I3 - G^T M^{-1} G)`` with ``G_k = [p_k]x Q^T``.
+    Since ``G G^T = M0 = tr(C) I - C``, ``C = P^T P``, it is positive semi-definite exactly
+    when the eigenvalues of ``M0^{-1/2} M M0^{-1/2}`` are >= 1. Summed over cells, the
+    Hessian is ``2 (L (x) I3 - J^T J)`` with ``J`` (3m x 3n) made of :meth:`blocks`.
+
+    Parameters
+    ----------
+    steps : LocalGlobal
+        The design's local-global steps (its mesh, ``L``, pinned vertex and factorised ``L_ff``).
+    """
+
+    #: Spacing of the coarse grid of ``method="newton-cg"``, in film thicknesses.
+    coarse_spacing = 1.5
+    #: How ``method="newton-cg"`` combines the n x n and coarse corrections
+    #: (``"multiplicative"`` or ``"additive"``, see :meth:`operator`).
+    two_level = "multiplicative"
+
+    def __init__(self, steps):
+        self.steps = steps
+
+    # -- mesh-only constants, made on first use -------------------------------------------
+    @functools.cached_property
+    def L3(self):
+        """``L (x) I3`` (3n x 3n, CSR), unknowns ordered vertex-major (``3 v + c``)."""
+        return sp.kron(self.steps.L, sp.eye(3), format="csr")
+
+    @functools.cached_property
+    def _patterns(self):
+        """The sparsity of ``J`` and of ``J^T``: it depends on the mesh only."""
+        cells, n = self.steps.cells, self.steps.n
+        m = cells.shape[0]
+        rows = np.broadcast_to((3 * np.arange(m))[:, None, None, None] + np.arange(3)[None, None, :, None],
+                               (m, 8, 3, 3))
+        cols = np.broadcast_to(3 * cells[:, :, None, None] + np.arange(3)[None, None, None, :],
+                               (m, 8, 3, 3))
+        shape = (3 * m, 3 * n)
+        # the data of J0 and Jt0 are 1 + the flat index into the blocks
+        order = np.lexsort((cols.ravel(), rows.ravel()))
+        J0 = sp.csr_matrix((order + 1.0, cols.ravel()[order], np.arange(0, 72 * m + 1, 24)), shape=shape)
+        Jt0 = J0.T.tocsr()
+        return (_Pattern(order, J0.indices, J0.indptr, shape),
+                _Pattern(Jt0.data.astype(np.int64) - 1, Jt0.indices, Jt0.indptr, shape[::-1]))
+
+    @functools.cached_property
+    def coarse(self) -> CoarseSpace:
+        """The :class:`CoarseSpace`: a grid about :attr:`coarse_spacing` film thicknesses apart.
+
+        At least two cells apart, so that the coarse space carries the bending at lengths
+        above the thickness, which the n x n system alone resolves badly.
+        """
+        steps = self.steps
+        design = steps.design
+        mesh = design.mesh
+        X = mesh.points
+        dx, dy, dz = mesh.spacing
+        c = max(2, int(np.ceil(self.coarse_spacing * design.h / min(dx, dy))))
+        i = np.rint((X[:, 0] - X[:, 0].min()) / dx).astype(int)
+        j = np.rint((X[:, 1] - X[:, 1].min()) / dy).astype(int)
+        k = np.rint((X[:, 2] - X[:, 2].min()) / dz).astype(int)
+        I0, ti = np.divmod(i, c)
+        J0, tj = np.divmod(j, c)
+        ti, tj = ti / c, tj / c
+        nJ, nK = j.max() // c + 2, k.max() + 1
+        rows = np.tile(np.arange(steps.n), 4)
+        cols = np.concatenate([((I0 + a) * nJ + (J0 + b)) * nK + k for a in (0, 1) for b in (0, 1)])
+        vals = np.concatenate([wa * wb for wa in (1 - ti, ti) for wb in (1 - tj, tj)])
+        vals[rows == steps.pin] = 0.0
+        Z = sp.csr_matrix((vals, (rows, cols)))
+        Z.eliminate_zeros()
+        used = np.unique(Z.indices)
+        Z = Z[:, used].tocsr()
+        Zf = Z[steps.free]
+        Lc3 = sp.kron(Zf.T @ steps.L_ff @ Zf, sp.eye(3), format="csc")
+        Z3 = sp.kron(Z, sp.eye(3), format="csr")
+        return CoarseSpace(Z=Z, Z3=Z3, Lc3=Lc3)
+
+    # -- per step ------------------------------------------------------------------------
+    def blocks(self, Q, S, rest, floor=1.0):
+        """``root^T G_k`` of every cell, ``(m, 8, 3, 3)``: the blocks of ``J``.
+
+        Parameters
+        ----------
+        Q, S : (m, 3, 3) float arrays
+            The rotations and the cross-covariances they came from (:class:`Orientation`).
+        rest : RestState
+            The constants of the activation.
+        floor : float
+            Lower clamp of the eigenvalues of ``M0^{-1/2} M M0^{-1/2}``: 1 makes every
+            cell's Hessian positive semi-definite (:meth:`matrix`); below 1 a cell may
+            contribute negative curvature, which the sum over cells usually absorbs.
+        """
+        M0is = rest.M0is
+        Y = np.einsum("mji,mjk->mik", Q, S)
+        Y = 0.5 * (Y + Y.transpose(0, 2, 1))
+        M = np.trace(Y, axis1=1, axis2=2)[:, None, None] * np.eye(3) - Y
+        B = M0is @ M @ M0is
+        lam, W = np.linalg.eigh(B)
+        lam = np.maximum(lam, floor)
+        # (w N)^(1/2) with N = M0^{-1/2} W diag(1/lam) W^T M0^{-1/2}
+        root = np.einsum("mij,mjk,mk->mik", M0is, W, np.sqrt(self.steps.w[:, None] / lam))
+        G = np.matmul(rest.Kx, Q.transpose(0, 2, 1)[:, None])  # G_k = [p_k]x Q^T, (m, 8, 3, 3)
+        return np.matmul(root.transpose(0, 2, 1)[:, None], G)  # root^T G_k
+
+    def jacobian(self, RG):
+        """``J`` (3m x 3n, rows ``3 i + a``) and ``J^T``, both CSR, from the blocks ``RG``."""
+        values = RG.ravel()
+        pattern, pattern_t = self._patterns
+        return pattern.fill(values), pattern_t.fill(values)
+
+    def matrix(self, Q, S, rest, mu=0.0):
+        """Positive semi-definite Hessian (3n x 3n, sparse), plus ``mu`` times ``2 L``.
+
+        The per-cell eigenvalues are clamped to >= 1, which keeps every Newton step a
+        descent direction. Unknowns ordered vertex-major (``3 v + c``).
+        """
+        RG = self.blocks(Q, S, rest, floor=1.0)
+        J, _ = self.jacobian(RG)
+        return (2.0 * (1.0 + mu)) * self.L3 - 2.0 * (J.T @ J)
+
+    def operator(self, RG, mu):
+        """Hessian product and preconditioner for the blocks ``RG`` and damping ``mu``.
+
+        The preconditioner combines the exact inverse of the (scaled) n x n system for
+        the three coordinates with a Galerkin coarse correction ``Z (Z^T H Z)^{-1} Z^T``:
+        symmetrically, coarse - fine - coarse (:attr:`two_level` ``"multiplicative"``,
+        which halves the CG iterations on the mask sheets for one more Hessian product),
+        or summed (``"additive"``).
+
+        Returns
+        -------
+        (apply_H, apply_P)
+            Functions acting on ``(n, 3)`` arrays; None when the coarse matrix is not
+            positive definite.
+        """
+        steps = self.steps
+        cs = self.coarse
+        Z = cs.Z
+        J, Jt = self.jacobian(RG)
+        JZ = (J @ cs.Z3).tocsc()
+        Hc = (2.0 * (1.0 + max(mu, MU_MIN))) * cs.Lc3 - 2.0 * (JZ.T @ JZ)
+        try:
+            fc = factorise(Hc)
+        except RuntimeError:  # SuperLU: exactly singular
+            return None
+        pin, free, L, factor = steps.pin, steps.free, steps.L, steps.factor
+        scale = 2.0 * (1.0 + mu)
+        two_level = self.two_level
+
+        def apply_H(v):
+            out = scale * (L @ v) - 2.0 * (Jt @ (J @ v.ravel())).reshape(-1, 3)
+            out[pin] = 0.0
+            return out
+
+        def coarse(r):
+            return Z @ fc.solve((Z.T @ r).ravel()).reshape(-1, 3)
+
+        def fine(r):
+            z = np.zeros_like(r)
+            z[free] = factor.solve(np.asfortranarray(r[free])) / scale
+            return z
+
+        def apply_P(r):
+            if two_level == "additive":
+                return fine(r) + coarse(r)
+            z = coarse(r)  # symmetric multiplicative: coarse, fine, coarse
+            z += fine(r - apply_H(z))
+            return z + coarse(r - apply_H(z))
+
+        return apply_H, apply_P
+
+
+def pcg(apply_H, apply_P, rhs, rtol, max_iter):
+    """Preconditioned CG from 0; stops at negative curvature.
+
+    Returns
+    -------
+    x : array like ``rhs``
+    iterations : int
+    """
+    x = np.zeros_like(rhs)
+    r = rhs.copy()
+    z = apply_P(r)
+    rz = float(np.vdot(r, z))
+    if not rz > 0:
+        return x, 0
+    stop = rtol * np.sqrt(rz)
+    p = z
+    for k in range(1, max_iter + 1):
+        Hp = apply_H(p)
+        pHp = float(np.vdot(p, Hp))
+        if not pHp > 0:
+            return x, k
+        a = rz / pHp
+        x += a * p
+        r -= a * Hp
+        z = apply_P(r)
+        rz_new = float(np.vdot(r, z))
+        if not rz_new > 0 or np.sqrt(rz_new) <= stop:
+            return x, k
+        p = z + (rz_new / rz) * p
+        rz = rz_new
+    return x, max_iter
+
+
+def factorised_directions(hessian, rest):
+    """Newton steps of ``method="newton"``: the 3n x 3n Hessian factorised, per damping ``mu``.
+
+    Returns ``directions(Q, S, grad, res)``, see :func:`solve_newton`.
+    """
+    steps = hessian.steps
+    fdof = (3 * steps.free[:, None] + np.arange(3)).ravel()
+    n = steps.n
+
+    def directions(Q, S, grad, res):
+        def step(mu):
+            H = hessian.matrix(Q, S, rest, mu=mu)[fdof][:, fdof]
+            out = np.zeros(3 * n)
+            try:
+                out[fdof] = factorise(H).solve(-grad.ravel()[fdof])
+            except RuntimeError:  # numerically singular: damp more
+                return None, 0
+            return out.reshape(n, 3), 0
+        return step
+    return directions
+
+
+def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200):
+    """Newton steps of ``method="newton-cg"``: preconditioned CG, no 3n x 3n factorisation.
+
+    The Hessian is :meth:`ReducedHessian.matrix`'s with the per-cell clamp lowered to
+    ``floor`` (nearer the true Hessian, hence fewer Newton steps; CG stops at negative
+    curvature and the energy test rejects a bad step). Each CG iteration costs one solve
+    with the factorised n x n system for three right-hand sides, Hessian products and
+    solves with the coarse matrix, which is factorised once per step. CG stops at a
+    relative (preconditioned) residual ``cg_rtol``, by default the square root of the
+    plain step's residual clipped to [1e-3, 0.1]: loose far from the solution, tight near it.
+
+    Returns ``directions(Q, S, grad, res)``, see :func:`solve_newton`.
+    """
+    def directions(Q, S, grad, res):
+        RG = hessian.blocks(Q, S, rest, floor=floor)
+        rtol = cg_rtol if cg_rtol is not None else min(0.1, max(1e-3, np.sqrt(res)))
+
+        def step(mu):
+            ops = hessian.operator(RG, mu)
+            if ops is None:
+                return None, 0
+            x, k = pcg(*ops, -grad, rtol, cg_max)
+            log.debug("CG: %d iterations to %.1e", k, rtol)
+            return x, k
+        return step
+    return directions
+
+
+def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)):
+    """Damped Newton on the rotation-reduced energy; the outer loop of both Newton methods.
+
+    Parameters
+    ----------
+    steps : LocalGlobal
+    V0 : (n, 3) float array [mm]
+        Start; its pinned vertex stays where it is.
+    activation : float
+    tol : float
+        Tolerance (units of h), see below.
+    max_iter : int
+        Limit on the assembly steps.
+    directions : callable
+        ``directions(Q, S, grad, res)`` returns a function of the damping ``mu`` giving
+        ``(step, cg_iterations)``: the Newton step as an ``(n, 3)`` array (None when it
+        cannot be computed) and the CG iterations it took.
+    alphas : tuple of float
+        Step lengths tried, in order; the first that lowers the energy is taken and
+        ``mu`` shrinks (a full step) or doubles (a shortened one); when none does, ``mu``
+        grows eightfold and the step is recomputed.
+
+    Returns
+    -------
+    SolveStats
+
+    Notes
+    -----
+    Stopping: the plain step's residual must be below ``tol`` (the paper's test) and the
+    estimated distance to the solution below ``STEP_TOL_FACTOR * tol`` (both in units of
+    h). The plain step underestimates that distance by the ratio of stretching to bending
+    stiffness; the Newton step does not. The estimate is the last step's length ``|s_k|``,
+    or ``|s_k| theta / (1 - theta)`` with the contraction ``theta = |s_k| / |s_k-1|`` of
+    two full steps when that is smaller (the bound of a sequence contracting by ``theta``).
+    """
+    V = np.array(V0, float)
+    Vp = V[steps.pin].copy()
+    scale = steps.design.h
+    o = steps.orient(V, activation)
+    Q, E, S = o.Q, o.energy, o.S
+    energies = [E]
+    mu = 1e-3
+    it = cg = 0
+    error = prev = np.inf  # estimated distance to the solution; last full step, in units of h
+    while True:
+        plain = steps.assemble(Q, Vp, activation)  # the plain step from V
+        G = plain.V
+        it += 1
+        res = float(np.abs(G - V).max() / scale)
+        if (res <= tol and error <= STEP_TOL_FACTOR * tol) or it >= max_iter:
+            break
+        t0 = time.perf_counter()
+        grad = 2.0 * (steps.L @ V - plain.b)
+        grad[steps.pin] = 0.0
+        direction = directions(Q, S, grad, res)
+        steps.timings["newton"] = steps.timings.get("newton", 0.0) + time.perf_counter() - t0
+        for _ in range(20):
+            t0 = time.perf_counter()
+            step, k = direction(mu)
+            cg += k
+            steps.timings["newton"] += time.perf_counter() - t0
+            taken = None
+            if step is not None and np.any(step):
+                for alpha in alphas:
+                    Vt = V + alpha * step
+                    trial = steps.orient(Vt, activation)
+                    Et = trial.energy
+                    # a full step may raise the energy by its round-off: near the
+                    # solution every step changes it by less than that
+                    if Et < E or (alpha == 1.0 and Et <= E * (1.0 + ENERGY_ROUNDOFF)):
+                        V, Q, E, S, taken = Vt, trial.Q, Et, trial.S, alpha
+                        break
+            if taken is not None:
+                moved = float(np.abs(taken * step).max() / scale)
+                error = moved
+                if taken == 1.0:
+                    theta = moved / prev  # 0 after a first full step: no estimate yet
+                    if 0.0 < theta < 1.0:
+                        error = min(moved, moved * theta / (1.0 - theta))
+                    prev = moved
+                else:
+                    prev = np.inf
+                mu = max(mu / 4.0, MU_MIN) if taken == 1.0 else 2.0 * mu
+                break
+            mu *= 8.0
+        else:  # no descent even with heavy damping: take the plain step
+            V = G
+            o = steps.orient(V, activation)
+            Q, E, S = o.Q, o.energy, o.S
+            error, prev = res, np.inf
+        log.debug("newton %d: residual %.3e, error estimate %.3e, energy %.6e, mu %.1e",
+                  it, res, error, E, mu)
+        energies.append(E)
+    return SolveStats(points=G, converged=res <= tol, iterations=it, residual=res,
+                      energies=energies + [steps.orient(G, activation).energy], cg_iterations=cg)

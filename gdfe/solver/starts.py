@@ -1,0 +1,55 @@
+"""Starting shapes of the first frame besides the linearised start: the flat and the multilevel start.
+
+The linearised start (:mod:`gdfe.solver.linearised`) serves most designs. Large sheets
+start from the solution of the design coarsened 2 x 2 in the plane
+(:func:`multilevel_start`, with :func:`gdfe.multilevel.coarsen`), which finds the
+large-scale shape at a quarter of the cost; :func:`flat_start` perturbs the flat print.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from gdfe.multilevel import coarsen
+from gdfe.solver.methods import Solver, auto_method
+
+__all__ = ["MULTILEVEL_COARSEST", "MULTILEVEL_TOL", "flat_start", "multilevel_start"]
+
+log = logging.getLogger(__name__)
+
+#: ``init="multilevel"`` coarsens until a level has at most this many cells.
+MULTILEVEL_COARSEST = 2_000
+#: Tolerance of the coarse levels of ``init="multilevel"`` (their shape is only a start).
+MULTILEVEL_TOL = 1e-3
+
+
+def flat_start(design, seed=0):
+    """The flat print with a seeded perturbation of 1e-4 h out of plane, ``(n, 3)`` [mm].
+
+    The flat print itself is a fixed point of the alternation, so it must be perturbed
+    to bend at all.
+    """
+    V = design.mesh.points.copy()
+    rng = np.random.default_rng(seed)
+    return V + np.column_stack([np.zeros((len(V), 2)), 1e-4 * design.h * rng.standard_normal(len(V))])
+
+
+def multilevel_start(design, activation):
+    """Start ``(n, 3)`` [mm] for ``design``: the solved shape of its 2 x 2 coarsening, interpolated.
+
+    Recursively down to :data:`MULTILEVEL_COARSEST` cells, whose level starts from the
+    linearised start; every coarse level is solved by :func:`auto_method`'s method to
+    :data:`MULTILEVEL_TOL` (at most 50 iterations).
+    """
+    coarse, prolong = coarsen(design)
+    solver = Solver(coarse)
+    if coarse.n_cells > MULTILEVEL_COARSEST:
+        V = multilevel_start(coarse, activation)
+    else:
+        V = solver.linearised_start(coarse.mesh.points.copy(), activation)
+    stats = solver.solve(V, activation, method=auto_method(coarse), tol=MULTILEVEL_TOL, max_iter=50)
+    log.debug("multilevel: %d cells, %d iterations, residual %.2e", coarse.n_cells, stats.iterations,
+              stats.residual)
+    return prolong @ stats.points
