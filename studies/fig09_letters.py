@@ -2,12 +2,13 @@
 
 Each letter is one stroke of at most three couples (arcs of length L and signed radius
 r, r = 0 straight, r > 0 anticlockwise; the dot of the i is left out, a strip has one
-stroke). The pattern rule of Sec. 4.2 turns each couple into contracting cells of total
-length ``L_c = |L/r| h / (1 - R)`` alternated uniformly with rigid cells
-(:func:`gdfe.inverse.strip_pattern`); the strip (0.5 mm wide, one cell across, one
+stroke; the glyphs are :data:`gdfe.inverse.LETTERS`). The pattern rule of Sec. 4.2 turns
+each couple into contracting cells of total length ``L_c = |L/r| h / (1 - R)`` alternated
+uniformly with rigid cells (:func:`gdfe.inverse.strip_pattern`); the strip (0.5 mm wide, one cell across, one
 through the film, h = 0.29 mm, R = 0.6947 from Eq. 3 at d = 0.33 mm) is simulated with
 GDFE and its mid-line is compared with the target curve after the best rigid motion of
-the plane (no mirror): the maximum deviation is the symmetric Hausdorff distance.
+the plane (no mirror): the maximum deviation is the symmetric Hausdorff distance. The
+steps are those of the library's pipeline (:mod:`gdfe.inverse.pipeline`).
 
 A contracting cell shortens the film's mid-line by ``(1 - R)/2`` of its length while the
 coated face keeps its length, so the printed rule makes every couple's mid-line
@@ -19,8 +20,6 @@ Run ``python -m studies.fig09_letters [--out DIR] [--resolution R] [--json]`` or
 """
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 
@@ -34,57 +33,33 @@ WIDTH = 0.5
 CELL = {"coarse": 0.25, "default": 0.125, "fine": 0.0625}
 TOL_MAX_DEV = 0.5  # mm: regression bound on the largest deviation of any letter
 
-# glyph -> (couples [(L, r)], start heading [rad], start point [mm]) in the letter's own frame.
-# Sizes: capital C radius 3 mm; x-height about 4 mm; ascender of d 8 mm.
-LETTERS = {
-    "C": ([(3.0 * 1.5 * math.pi, 3.0)], 0.75 * math.pi, (3.0 / math.sqrt(2), 3.0 / math.sqrt(2))),
-    "o": ([(2.0 * 2 * math.pi, 2.0)], 0.5 * math.pi, (2.0, 0.0)),
-    "n": ([(3.0, 0.0), (1.25 * math.pi, -1.25), (3.0, 0.0)], 0.5 * math.pi, (0.0, -2.0)),
-    "c": ([(2.0 * 1.5 * math.pi, 2.0)], 0.75 * math.pi, (2.0 / math.sqrt(2), 2.0 / math.sqrt(2))),
-    "r": ([(2.5, 0.0), (1.5 * 0.5 * math.pi, -1.5)], 0.5 * math.pi, (0.0, -2.0)),
-    "d": ([(2.0, 0.0), (2.0 * 2 * math.pi, 2.0), (4.0, 0.0)], 0.5 * math.pi, (2.0, -2.0)),
-    "i": ([(4.0, 0.0)], 0.5 * math.pi, (0.0, -2.0)),
-    "a": ([(2.0, 0.0), (2.0 * 2 * math.pi, -2.0), (2.0, 0.0)], -0.5 * math.pi, (2.0, 2.0)),
-}
 WORD = "Concordia"
-
-
-def compensated(couples, h):
-    """Couples printed ``|alpha| h / 2`` longer with the same angle, so that the mid-line has length L."""
-    from gdfe.inverse import Couple
-
-    out = []
-    for c in couples:
-        a = c.angle
-        L = c.L + abs(a) * h / 2
-        out.append(Couple(L, L / a if a != 0 else 0.0))
-    return out
 
 
 def _letter(case):
     """Design, simulate and measure one letter (module level: runs in worker processes)."""
     from gdfe import inverse as inv
 
-    couples = inv.as_couples(LETTERS[case["glyph"]][0])
-    heading, start = LETTERS[case["glyph"]][1:]
-    printed = compensated(couples, H) if case["variant"] == "midline" else couples
-    pat = inv.strip_pattern(printed, h=H, R=case["R"], cell=case["cell"])
-    des = pat.design(width=WIDTH, ny=1, nz=1)
-    res = inv.simulate_strip(des)
-    s, uv, off = inv.strip_midline(res)
-    target, s_t = inv.arc_points(couples, ds=0.02, heading=heading, start=start)
-    # the printed strip's arc length maps onto the target's in proportion, couple by couple
-    ends_p = np.concatenate([[0.0], np.cumsum([(pat.segment == i).sum() * pat.cell for i in range(len(couples))])])
-    ends_t = np.concatenate([[0.0], np.cumsum([c.L for c in couples])])
-    cmp = inv.compare_curves(uv, target, s=np.interp(s, ends_p, ends_t), s_target=s_t)
+    target = inv.target_from_letter(case["glyph"])
+    plan = inv.plan_strip(target, h=H, R=case["R"], cell=case["cell"], compensate=case["variant"] == "midline")
+    check = inv.check_strip(plan, width=WIDTH, ny=1, nz=1)
+    res, pat, des = check.result, plan.pattern, check.design
+    couples, printed = target.couples, plan.printed
+    if check.deviation is None:  # not converged: no shape to measure
+        nan = np.full((2, 2), np.nan)
+        dev = {"max": float("nan"), "rms": float("nan"), "off": float("nan"), "aligned": nan, "midline": nan}
+    else:
+        d = check.deviation
+        dev = {"max": d.max, "rms": d.rms, "off": d.off_plane, "aligned": d.aligned, "midline": d.midline}
+    uv = dev["midline"]
     return {"glyph": case["glyph"], "variant": case["variant"], "couples": [[c.L, c.r] for c in couples],
             "printed_couples": [[c.L, c.r] for c in printed], "n_couples": len(couples),
             "blocks": pat.blocks.tolist(), "angle_target": pat.angle.tolist(),
             "angle_printed": pat.angle_printed.tolist(), "strip_mm": pat.length, "n_cells": int(des.n_cells),
-            "max_dev_mm": cmp["max"], "rms_mm": cmp["rms"], "off_plane_mm": off,
+            "max_dev_mm": dev["max"], "rms_mm": dev["rms"], "off_plane_mm": dev["off"],
             "turn_sim": float(np.sum(np.diff(np.unwrap(np.arctan2(*np.diff(uv, axis=0).T[::-1]))))),
             "converged": bool(res.converged), "iterations": int(res.iterations), "residual": float(res.residual),
-            "seconds": float(res.seconds), "_aligned": cmp["aligned"], "_target": target,
+            "seconds": float(res.seconds), "_aligned": dev["aligned"], "_target": target.curve,
             "_pattern": pat.material, "_cell": pat.cell}
 
 

@@ -19,7 +19,8 @@ of the length (``weights="length"``), which does not grow with the sampling.
 
 Each fit is drawn (couples with their sharp turns) and compared with the sketch; each
 design (sharp turns replaced by maximum-curvature hinges, R = 0.6947, h = 0.29 mm) is
-also simulated with GDFE and compared with the sketch.
+also simulated with GDFE and compared with the sketch, by the steps of the library's
+pipeline (:mod:`gdfe.inverse.pipeline`).
 
 Run ``python -m studies.fig10_segmentation [--out DIR] [--resolution R] [--json]`` or
 ``gdfe study fig10``; writes ``fig10.png`` and ``fig10.json``.
@@ -62,15 +63,17 @@ def sketch(n_points=N_POINTS, jitter=JITTER, seed=SEED):
 def _simulate(case):
     from gdfe import inverse as inv
 
-    fit = case["fit"]
-    couples = inv.with_hinges(fit.couples, fit.turns, h=H, R=case["R"])
-    pat = inv.strip_pattern(couples, h=H, R=case["R"], cell=case["cell"], rounding="carry", clamp=True)
-    des = pat.design(width=WIDTH, ny=1, nz=1)
-    res = inv.simulate_strip(des)
-    _, uv, _ = inv.strip_midline(res)
-    cmp = inv.compare_curves(uv, case["points"])
-    to_fit = inv.compare_curves(uv, fit.curve(ds=0.02))
-    return {"penalty": case["penalty"], "n_couples_printed": len(couples), "clamped": int(pat.clamped.sum()),
+    target = case["target"]
+    plan = inv.plan_strip(target, h=H, R=case["R"], cell=case["cell"], rounding="carry", clamp=True)
+    check = inv.check_strip(plan, width=WIDTH, ny=1, nz=1)
+    res, pat, dev = check.result, plan.pattern, check.deviation
+    if dev is None:  # not converged: no shape to measure
+        cmp = {"max": float("nan"), "rms": float("nan"), "aligned": np.full((2, 2), np.nan)}
+        to_fit = {"max": float("nan")}
+    else:
+        cmp = {"max": dev.max, "rms": dev.rms, "aligned": dev.aligned}
+        to_fit = inv.compare_curves(dev.midline, target.fit.curve(ds=0.02))
+    return {"penalty": case["penalty"], "n_couples_printed": len(plan.printed), "clamped": int(pat.clamped.sum()),
             "max_dev_mm": cmp["max"], "rms_mm": cmp["rms"], "max_dev_from_fit_mm": to_fit["max"],
             "converged": bool(res.converged),
             "iterations": int(res.iterations), "seconds": float(res.seconds), "_aligned": cmp["aligned"]}
@@ -86,9 +89,10 @@ def run(resolution="default", out=None):
     R = float(gdfe.Calibration().ratio(D))
     P = sketch()
     s, tau = inv.tangent_graph(P)
-    fits, levels = {}, []
+    fits, targets, levels = {}, {}, []
     for pen in PENALTIES:
-        fit = inv.fit_sketch(P, pen)
+        targets[pen] = inv.target_from_sketch(P, pen)
+        fit = targets[pen].fit
         fitw = inv.fit_sketch(P, pen, weights="length")
         fits[pen] = fit
         curve = fit.curve(ds=0.02)
@@ -101,7 +105,7 @@ def run(resolution="default", out=None):
             "heading_rad": fit.heading, "breaks": fit.boundaries.tolist(),
             "fit_dev_mm": float(d_fixed), "fit_dev_aligned_mm": cmp_free["max"],
         })
-    sims = parallel_map(_simulate, [{"penalty": p, "fit": fits[p], "R": R, "cell": CELL[resolution], "points": P}
+    sims = parallel_map(_simulate, [{"penalty": p, "target": targets[p], "R": R, "cell": CELL[resolution]}
                                     for p in PENALTIES], n_jobs=n_jobs(resolution), desc="fig10 designs")
     for lv, sm in zip(levels, sims):
         lv["gdfe"] = {k: v for k, v in sm.items() if not k.startswith("_")}

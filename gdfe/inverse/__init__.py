@@ -7,13 +7,21 @@ A planar curve is a chain of *couples* ``(L_i, r_i)``, circular arcs joined tang
 (:mod:`gdfe.inverse.strips`), and compared with the target curve after the best rigid motion of
 the plane (:mod:`gdfe.inverse.curves`). A freeform sketch is first split into couples and sharp
 turns by an exact segmentation of its tangent-angle graph (:mod:`gdfe.inverse.segmentation`).
+The letters of Figure 9 are chains of couples (:mod:`gdfe.inverse.letters`); the whole
+pipeline, target -> plan -> simulated check -> deviation per segment, is
+:mod:`gdfe.inverse.pipeline` and :mod:`gdfe.inverse.deviation`, and the files it reads
+(couples TOML, sketch CSV or SVG path) :mod:`gdfe.inverse.sources`.
 
 All lengths in millimetres, angles in radians.
 """
 
 from gdfe.inverse.couples import Couple, arc_points, as_couples, check_open_ratio, contracting_length, max_curvature
 from gdfe.inverse.curves import align_2d, closest_on_polyline, compare_curves
+from gdfe.inverse.deviation import Deviation, plot_deviation, strip_deviation
+from gdfe.inverse.letters import LETTERS, Glyph, glyph, text_glyphs
 from gdfe.inverse.patterns import ROUNDINGS, StripPattern, strip_pattern, with_hinges
+from gdfe.inverse.pipeline import (StripCheck, StripPlan, Target, check_strip, midline_compensated, plan_strip,
+                                   target_from_couples, target_from_letter, target_from_sketch)
 from gdfe.inverse.segmentation import (Segmentation, SketchFit, fit_segments, fit_sketch, segment_cost_matrix,
                                        tangent_graph)
 from gdfe.inverse.strips import bent_start, simulate_strip, strip_midline
@@ -23,4 +31,7 @@ __all__ = [
     "arc_points", "StripPattern", "strip_pattern", "with_hinges", "ROUNDINGS",
     "bent_start", "simulate_strip", "strip_midline", "align_2d", "closest_on_polyline", "compare_curves",
     "tangent_graph", "Segmentation", "segment_cost_matrix", "fit_segments", "SketchFit", "fit_sketch",
+    "Glyph", "LETTERS", "glyph", "text_glyphs",
+    "Target", "target_from_couples", "target_from_letter", "target_from_sketch", "midline_compensated",
+    "StripPlan", "plan_strip", "StripCheck", "check_strip", "Deviation", "strip_deviation", "plot_deviation",
 ]
