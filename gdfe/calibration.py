@@ -50,6 +50,7 @@ __all__ = [
     "READINGS",
     "fit_reading",
     "fit_quality",
+    "held_out_rmse",
     "regressor",
     "FoldingTests",
     "load_folding_tests",
@@ -154,6 +155,9 @@ class Calibration:
         """
         return fit_reading(tests, "eq1", n_boot=n_boot, seed=seed)
 
+
+#: Bootstrap indices drawn at a time by :func:`fit_reading` (bounds its memory: 8 bytes each).
+BOOTSTRAP_CHUNK = 4_000_000
 
 #: The readings of Eq. 1 that :func:`fit_reading` fits (see the module docstring).
 READINGS = ("eq1", "eq1-d1", "power")
@@ -324,11 +328,15 @@ def fit_reading(tests, model="eq1", n_boot=2000, seed=0):
     if n < need:
         raise GdfeError(f"tests: expected at least {need} folding tests to fit {model}, got {n}")
     rng = np.random.default_rng(seed)
-    idx = rng.integers(0, n, size=(int(n_boot), n)) if n_boot else np.zeros((0, n), int)
+    # resamples drawn in chunks of at most BOOTSTRAP_CHUNK indices: memory stays bounded for
+    # any number of tests (one chunk, and the same numbers, for small data sets)
+    per = max(1, BOOTSTRAP_CHUNK // n)
+    chunks = [min(per, int(n_boot) - k) for k in range(0, int(n_boot), per)]
     if model == "power":
         K, p = _power_fit(L / h, h / d, y)
         fitted = K * (L / h) * (h / d) ** p
-        boots = np.array([_power_fit((L / h)[i], (h / d)[i], y[i]) for i in idx]).reshape(-1, 2)
+        boots = np.array([_power_fit((L / h)[i], (h / d)[i], y[i])
+                          for k in chunks for i in rng.integers(0, n, size=(k, n))]).reshape(-1, 2)
         K_ci = tuple(np.percentile(boots[:, 0], [2.5, 97.5]).tolist()) if n_boot else (K, K)
         p_ci = tuple(np.percentile(boots[:, 1], [2.5, 97.5]).tolist()) if n_boot else (p, p)
     else:
@@ -336,13 +344,46 @@ def fit_reading(tests, model="eq1", n_boot=2000, seed=0):
         K = float(x @ y / (x @ x))
         p = 1.5 if model == "eq1" else 0.5
         fitted = K * x
-        xb, yb = x[idx], y[idx]
-        Kb = (xb * yb).sum(1) / (xb * xb).sum(1)
+        Kb = []
+        for k in chunks:
+            idx = rng.integers(0, n, size=(k, n))
+            xb, yb = x[idx], y[idx]
+            Kb.append((xb * yb).sum(1) / (xb * xb).sum(1))
+        Kb = np.concatenate(Kb) if Kb else np.zeros(0)
         K_ci = tuple(np.percentile(Kb, [2.5, 97.5]).tolist()) if n_boot else (K, K)
         p_ci = (p, p)
     r2, r2u, rmse, res = fit_quality(y, fitted)
     return CalibrationFit(model=model, K=float(K), p=float(p), r2=r2, r2_uncentered=r2u, rmse=rmse, n=int(n),
                           K_ci=K_ci, p_ci=p_ci, residuals=res)
+
+
+def held_out_rmse(tests, model="eq1"):
+    """Leave-one-test-out RMSE [rad] of a reading of Eq. 1: each test predicted by the reading
+    refitted to the others.
+
+    ``eq1`` and ``eq1-d1`` in closed form (the through-origin fit without test ``i``:
+    ``K_-i = (x.y - x_i y_i) / (x.x - x_i^2)``); ``power`` refitted once per test.
+    """
+    check_choice("model", model, READINGS)
+    if not isinstance(tests, FoldingTests):
+        tests = load_folding_tests(tests)
+    L, d, h, y = tests.L, tests.d, tests.h, tests.alpha
+    n = y.size
+    need = 4 if model == "power" else 3
+    if n < need:
+        raise GdfeError(f"tests: expected at least {need} folding tests to hold one out for {model}, got {n}")
+    if model == "power":
+        keep = np.ones(n, bool)
+        pred = np.empty(n)
+        for i in range(n):
+            keep[i] = False
+            c, p = _power_fit((L / h)[keep], (h / d)[keep], y[keep])
+            pred[i] = c * (L[i] / h[i]) * (h[i] / d[i]) ** p
+            keep[i] = True
+    else:
+        x = regressor(model, L, d, h)
+        pred = (x @ y - x * y) / (x @ x - x * x) * x
+    return float(np.sqrt(np.mean((y - pred) ** 2)))
 
 
 @dataclasses.dataclass(frozen=True)

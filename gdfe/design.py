@@ -1,16 +1,9 @@
 """Designs: a film, the passive material printed on its faces, and the film's contraction.
 
-Each in-plane cell of the film carries one of four materials, set by which faces are
-coated with passive material:
-
-==================  ===========  ==============  =====================================
-material            top coated   bottom coated   what the film does on heating
-==================  ===========  ==============  =====================================
-``RIGID``           yes          yes             keeps its shape (R-GDFE)
-``CONTRACT_TOP``    no           yes             top face shrinks by R: bends towards +z
-``CONTRACT_BOTTOM`` yes          no              bottom face shrinks by R: bends towards -z
-``FREE_SHRINK``     no           no              shrinks uniformly by R in-plane
-==================  ===========  ==============  =====================================
+Each in-plane cell of the film carries one of four materials (:class:`gdfe.material.Material`:
+rigid, contracting on its top or bottom face, free shrink), set by which faces are coated
+with passive material, and the passive thickness ``d`` printed there; a deformation model
+(:mod:`gdfe.model`, default the paper's Eq. 3) gives each cell its contraction ratio R.
 
 Inside a contracting cell the in-plane shrink varies linearly through the thickness,
 from R on the free face to 1 on the coated one (the paper's C-GDFE, Fig. 5).
@@ -19,7 +12,6 @@ from R on the free face to 1 on the coated one (the paper's C-GDFE, Fig. 5).
 from __future__ import annotations
 
 import dataclasses
-import enum
 import logging
 from pathlib import Path
 
@@ -27,26 +19,14 @@ import numpy as np
 
 from gdfe._validation import (GdfeError, GdfeFileNotFoundError, check_choice, check_number,
                               check_positive, check_ratio)
-from gdfe.calibration import DEFAULT_H, PAPER_K, Calibration
+from gdfe.calibration import DEFAULT_H, PAPER_K
+from gdfe.material import LAYOUT_CHARS, Material
 from gdfe.mesh import HexMesh, sheet_mesh
+from gdfe.model import as_model, paper_model
 
 log = logging.getLogger(__name__)
 
 __all__ = ["Material", "Design", "grid_design", "hinge", "from_masks", "from_rows", "load_design"]
-
-
-class Material(enum.IntEnum):
-    """Material of a cell, by which faces carry passive material."""
-
-    RIGID = 0
-    CONTRACT_TOP = 1
-    CONTRACT_BOTTOM = 2
-    FREE_SHRINK = 3
-
-
-#: Characters of the text layout of a design (``from_rows`` and TOML ``rows``).
-LAYOUT_CHARS = {"R": Material.RIGID, "T": Material.CONTRACT_TOP, "B": Material.CONTRACT_BOTTOM,
-                "S": Material.FREE_SHRINK}
 
 
 @dataclasses.dataclass
@@ -71,6 +51,15 @@ class Design:
         Named groups of cells (e.g. ``"panel_a"``, ``"hinge"``, ``"panel_b"``).
     meta : dict
         Free-form description (the parameters the design was made from).
+    d : (m,) float array [mm] or None
+        Passive thickness printed on each cell (the coat a one-side-coated cell bends
+        against); NaN where none is known. A deformation model turns it into ``R``.
+    contraction : (m, 2) float array or None
+        Explicit contraction ``1 - R`` of the top and bottom face of every cell, where a
+        model's mechanism spreads or caps it (see :meth:`face_contraction`); None: from
+        ``material`` and ``R``.
+    model : DeformationModel or None
+        The model the contractions came from (:mod:`gdfe.model`); None where ``R`` was given.
     """
 
     mesh: HexMesh
@@ -80,6 +69,9 @@ class Design:
     isotropy: float = 1.0
     regions: dict = dataclasses.field(default_factory=dict)
     meta: dict = dataclasses.field(default_factory=dict)
+    d: np.ndarray | None = None
+    contraction: np.ndarray | None = None
+    model: object = None
 
     def __post_init__(self):
         m = self.mesh.n_cells
@@ -94,22 +86,43 @@ class Design:
         self.h = check_positive("h", self.h)
         self.isotropy = check_number("isotropy", self.isotropy, minimum=0.0, maximum=1.0,
                                      what="a number in [0, 1]")
+        if self.d is not None:
+            self.d = np.broadcast_to(np.asarray(self.d, dtype=float), (m,)).copy()
+            known = self.d[np.isfinite(self.d)]
+            if np.any(known <= 0):
+                raise GdfeError(f"d: expected positive passive thicknesses in mm, got {known[known <= 0][0]:g}")
+        if self.contraction is not None:
+            c = np.asarray(self.contraction, dtype=float)
+            if c.shape != (m, 2) or not np.isfinite(c).all() or np.any(c < 0) or np.any(c >= 1):
+                raise GdfeError(f"contraction: expected an ({m}, 2) array of contractions in [0, 1), "
+                                f"got shape {c.shape}")
+            self.contraction = c
 
     @property
     def n_cells(self) -> int:
         return self.mesh.n_cells
 
     def with_R(self, R) -> "Design":
-        """A copy of the design with other contraction ratios (scalar or per cell)."""
-        return dataclasses.replace(self, R=np.broadcast_to(np.asarray(R, float), self.R.shape).copy())
+        """A copy of the design with other contraction ratios (scalar or per cell).
+
+        The ratios replace whatever a model gave: the copy has no explicit per-face
+        contraction and no model.
+        """
+        return dataclasses.replace(self, R=np.broadcast_to(np.asarray(R, float), self.R.shape).copy(),
+                                   contraction=None, model=None)
 
     def face_contraction(self):
         """Contraction ``1 - R`` of the top and of the bottom face of every cell (0 where coated).
+
+        The explicit :attr:`contraction` when a model's mechanism set one, else from
+        :attr:`material` and :attr:`R`.
 
         Returns
         -------
         top, bottom : (m,) float arrays
         """
+        if self.contraction is not None:
+            return self.contraction[:, 0].copy(), self.contraction[:, 1].copy()
         mat = self.material
         s = 1.0 - self.R
         top = np.where((mat == Material.CONTRACT_TOP) | (mat == Material.FREE_SHRINK), s, 0.0)
@@ -125,21 +138,31 @@ class Design:
 
     def summary(self) -> dict:
         counts = {mat.name.lower(): int((self.material == mat).sum()) for mat in Material}
-        return {"n_cells": self.n_cells, "n_points": self.mesh.n_points, "h_mm": self.h,
-                "spacing_mm": self.mesh.spacing.tolist(), "isotropy": float(self.isotropy),
-                "cells_by_material": counts, **self.meta}
+        out = {"n_cells": self.n_cells, "n_points": self.mesh.n_points, "h_mm": self.h,
+               "spacing_mm": self.mesh.spacing.tolist(), "isotropy": float(self.isotropy),
+               "cells_by_material": counts, **self.meta}
+        if self.d is not None and np.isfinite(self.d).any():
+            known = self.d[np.isfinite(self.d)]
+            out["d_mm_range"] = [float(known.min()), float(known.max())]
+        if self.model is not None:
+            out["model"] = self.model.name
+        return out
 
 
-def grid_design(material2d, R, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0, film=None,
-                regions2d=None, meta=None):
+def grid_design(material2d, R=None, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0, film=None,
+                regions2d=None, meta=None, d=None, model=None):
     """A design from an in-plane grid of materials.
+
+    The contraction of every cell comes either from ``R`` directly or from a deformation
+    model (:mod:`gdfe.model`, default the paper's Eq. 3) applied to the passive thickness
+    ``d`` printed on each cell.
 
     Parameters
     ----------
     material2d : (nx, ny) int array
         :class:`Material` code of each in-plane cell; column ``i`` runs along x, row ``j`` along y.
-    R : float or (nx, ny) float array
-        Contraction ratio of the free faces, in (0, 1].
+    R : float or (nx, ny) float array, optional
+        Contraction ratio of the free faces, in (0, 1]; without it, from ``model`` and ``d``.
     h : float [mm]
         Film thickness.
     pixel : float or (2,) float [mm]
@@ -152,6 +175,11 @@ def grid_design(material2d, R, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0, film=
         Where the film is; default everywhere.
     regions2d : dict of str -> (nx, ny) bool array, optional
         Named in-plane regions.
+    meta : dict, optional
+    d : float or (nx, ny) float array [mm], optional
+        Passive thickness printed on each cell (NaN where none).
+    model : DeformationModel or path of a model file, optional
+        The deformation model that gives ``R`` from ``d`` (default: the paper's Eq. 3).
     """
     material2d = np.asarray(material2d)
     if material2d.ndim != 2:
@@ -166,25 +194,42 @@ def grid_design(material2d, R, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0, film=
     keep = np.ones(material2d.shape, bool) if film is None else np.asarray(film, bool)
     if keep.shape != material2d.shape:
         raise GdfeError(f"film: expected shape {material2d.shape}, got {keep.shape}")
+    model = as_model(model)
+    if R is not None and model is not None:
+        raise GdfeError("R, model: expected a contraction ratio R or a deformation model, not both")
+    if R is None and d is None:
+        raise GdfeError("R, d: expected a contraction ratio R, or the passive thickness d for the "
+                        "deformation model")
     mesh = sheet_mesh(keep, dx, dy, h, nz=nz)
     i, j = mesh.cell_ij.T
-    R2 = np.broadcast_to(np.asarray(R, float), material2d.shape)
+    d_cells = None
+    if d is not None:
+        d2 = np.broadcast_to(np.asarray(d, float), material2d.shape)
+        d_cells = d2[i, j]
     regions = {}
     for name, mask in (regions2d or {}).items():
         mask = np.asarray(mask, bool)
         regions[name] = np.nonzero(mask[i, j])[0]
+    meta = dict(meta or {})
+    if R is None:
+        design = Design(mesh=mesh, material=material2d[i, j], R=1.0, h=h, isotropy=isotropy,
+                        regions=regions, meta=meta, d=d_cells)
+        return (model or paper_model()).apply(design)
+    R2 = np.broadcast_to(np.asarray(R, float), material2d.shape)
     return Design(mesh=mesh, material=material2d[i, j], R=R2[i, j], h=h, isotropy=isotropy,
-                  regions=regions, meta=dict(meta or {}))
+                  regions=regions, meta=meta, d=d_cells)
 
 
 def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_length=1.0,
-          cell_size=None, nz=1, isotropy=1.0, face="top"):
+          cell_size=None, nz=1, isotropy=1.0, face="top", model=None):
     """The paper's folding specimen: two rigid panels joined by a contracting hinge.
 
     The strip runs along x: ``panel_a`` (x < 0), the hinge of width ``length``
     (0 <= x <= length) coated on one face only, then ``panel_b``. Panels are coated on
     both faces. The hinge's free face shrinks by ``R``; without ``R``, ``R`` comes from
-    Eq. 3 with ``K``, ``h`` and ``d``.
+    the deformation model ``model`` at ``d`` (default: the paper's Eq. 3 with ``K``).
+    Where the model's contraction reaches into the panels (``hinge_length``), the regions
+    ``panel_a``/``panel_b`` are the parts of the panels it does not reach.
 
     Parameters
     ----------
@@ -197,7 +242,7 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
     K : float
         Coefficient of Eq. 1 used for Eq. 3.
     R : float, optional
-        Contraction ratio of the hinge's free face, overriding Eq. 3.
+        Contraction ratio of the hinge's free face, overriding the model.
     width : float [mm]
         Strip width (along y). With in-plane isotropic shrink the fold angle depends on
         it (the free face also shrinks across the strip); the default 0.5 mm is narrow
@@ -213,16 +258,23 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
         1: in-plane isotropic shrink (default); 0: shrink along x only.
     face : {"top", "bottom"}
         Which face of the hinge is free (bends towards +z for ``"top"``).
+    model : DeformationModel or path of a model file, optional
+        The deformation model (:mod:`gdfe.model`); default the paper's Eq. 3 with ``K``.
     """
     length = check_positive("length", length)
     width = check_positive("width", width)
     panel_length = check_positive("panel_length", panel_length)
     h = check_positive("h", h)
+    model = as_model(model)
     if R is None:
         if d is None:
             raise GdfeError("hinge: give the passive thickness d (mm) or the contraction ratio R")
-        R = float(Calibration(K=K, h=h).ratio(d))
-    R = check_ratio("R", R)
+        d = check_positive("d", d)
+        model = model or paper_model(K)
+    else:
+        if model is not None:
+            raise GdfeError("R, model: expected a contraction ratio R or a deformation model, not both")
+        R = check_ratio("R", R)
     check_choice("face", face, ("top", "bottom"))
     if cell_size is None:
         cell_size = min(length / 16.0, width / 2.0)
@@ -239,19 +291,38 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
     cols = np.arange(nx)[:, None] * np.ones((1, ny), int)
     regions2d = {"panel_a": cols < npanel, "hinge": (cols >= npanel) & (cols < npanel + nh),
                  "panel_b": cols >= npanel + nh}
-    des = grid_design(mat, R, h=h, pixel=(dx, dy), nz=nz, isotropy=isotropy, regions2d=regions2d,
-                      meta={"kind": "hinge", "length_mm": length, "d_mm": d, "K": K, "R": R,
-                            "width_mm": width, "panel_length_mm": npanel * dx, "face": face})
+    meta = {"kind": "hinge", "length_mm": length, "d_mm": d, "K": K if model is None or model.name in
+            ("paper", "eq3") else None, "R": R, "width_mm": width, "panel_length_mm": npanel * dx, "face": face}
+    if R is not None:
+        des = grid_design(mat, R, h=h, pixel=(dx, dy), nz=nz, isotropy=isotropy, regions2d=regions2d,
+                          meta=meta, d=np.where(mat == int(code), np.nan if d is None else d, np.nan))
+    else:
+        dgrid = np.where(mat == int(code), d, np.nan)
+        des = grid_design(mat, h=h, pixel=(dx, dy), nz=nz, isotropy=isotropy, regions2d=regions2d,
+                          meta=meta, d=dgrid, model=model)
+        hinge_cells = des.regions["hinge"]
+        des.meta["R"] = float(des.R[hinge_cells[0]])
+        if des.contraction is not None:  # a mechanism reached into the panels: they end where it stops
+            reached = (des.contraction > 0).any(axis=1)
+            for name in ("panel_a", "panel_b"):
+                cells = des.regions[name]
+                keep = cells[~reached[cells]]
+                if keep.size == 0:
+                    raise GdfeError(f"panel_length: the model's contraction reaches through the whole "
+                                    f"{name} ({panel_length:g} mm); expected panels longer than that")
+                des.regions[name] = keep
     # x = 0 at the start of the hinge
     des.mesh.points[:, 0] -= npanel * dx
     return des
 
 
-def from_rows(rows, R, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0):
+def from_rows(rows, R=None, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0, d=None, model=None):
     """A design from a text layout, one string per row of cells, first row at the largest y.
 
     Characters: ``R`` rigid, ``T`` contracts on top (top face free), ``B`` contracts on
-    the bottom, ``S`` free shrink, ``.`` no film.
+    the bottom, ``S`` free shrink, ``.`` no film. The contraction comes from ``R``, or
+    from the deformation ``model`` (default the paper's Eq. 3) at the passive thickness ``d``
+    [mm] (see :func:`grid_design`).
     """
     if isinstance(rows, str) or not rows:
         raise GdfeError("rows: expected a non-empty list of strings")
@@ -266,7 +337,20 @@ def from_rows(rows, R, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0):
     mat = np.zeros(grid.shape, int)
     for ch, code in LAYOUT_CHARS.items():
         mat[grid == ch] = int(code)
-    return grid_design(mat, R, h=h, pixel=pixel, nz=nz, isotropy=isotropy, film=film)
+    meta = {"kind": "layout", "d_mm": None if d is None else float(check_positive("d", d))}
+    return grid_design(mat, R, h=h, pixel=pixel, nz=nz, isotropy=isotropy, film=film, meta=meta,
+                       d=_one_side_d(mat, d, d, d), model=model)
+
+
+def _one_side_d(mat, d, d_top=None, d_bottom=None):
+    """Passive thickness of every cell coated on one face: the bottom coat's where the top is free."""
+    if d is None and d_top is None and d_bottom is None:
+        return None
+    d_top = d if d_top is None else d_top
+    d_bottom = d if d_bottom is None else d_bottom
+    nan = np.nan
+    return np.where(mat == Material.CONTRACT_TOP, nan if d_bottom is None else d_bottom,
+                    np.where(mat == Material.CONTRACT_BOTTOM, nan if d_top is None else d_top, nan))
 
 
 def _read_mask(name, value, shape=None):
@@ -293,7 +377,8 @@ def _read_mask(name, value, shape=None):
     return arr
 
 
-def from_masks(top, bottom, pixel, R, h=DEFAULT_H, nz=1, isotropy=1.0, film=None):
+def from_masks(top, bottom, pixel, R=None, h=DEFAULT_H, nz=1, isotropy=1.0, film=None, d=None,
+               d_top=None, d_bottom=None, model=None):
     """A design from masks of the passive material printed on the top and bottom faces.
 
     Parameters
@@ -303,10 +388,16 @@ def from_masks(top, bottom, pixel, R, h=DEFAULT_H, nz=1, isotropy=1.0, film=None
         printed on that face. Images are read with row 0 at the largest y.
     pixel : float [mm]
         Printer pixel size: the in-plane cell size.
-    R : float
-        Contraction ratio of the film's free faces.
+    R : float, optional
+        Contraction ratio of the film's free faces; without it, from ``model`` and ``d``.
     film : (nx, ny) bool array or image path, optional
         Where the film is (default: the whole rectangle).
+    d : float [mm], optional
+        Passive thickness of both faces' coat.
+    d_top, d_bottom : float [mm], optional
+        Passive thickness of each face's coat, where they differ (default ``d``).
+    model : DeformationModel or path of a model file, optional
+        The deformation model (default: the paper's Eq. 3).
     """
     pixel = check_positive("pixel", pixel)
     top = _read_mask("top", top)
@@ -315,22 +406,37 @@ def from_masks(top, bottom, pixel, R, h=DEFAULT_H, nz=1, isotropy=1.0, film=None
     mat = np.where(top & bottom, Material.RIGID,
                    np.where(bottom, Material.CONTRACT_TOP,
                             np.where(top, Material.CONTRACT_BOTTOM, Material.FREE_SHRINK))).astype(int)
-    return grid_design(mat, R, h=h, pixel=pixel, nz=nz, isotropy=isotropy, film=keep,
-                       meta={"kind": "masks", "pixel_mm": pixel})
+    for name, value in (("d", d), ("d_top", d_top), ("d_bottom", d_bottom)):
+        if value is not None:
+            check_positive(name, value)
+    meta = {"kind": "masks", "pixel_mm": pixel}
+    given = [v for v in (d, d_top, d_bottom) if v is not None]
+    if given:
+        meta["d_mm"] = float(given[0])
+    return grid_design(mat, R, h=h, pixel=pixel, nz=nz, isotropy=isotropy, film=keep, meta=meta,
+                       d=_one_side_d(mat, d, d_top, d_bottom), model=model)
 
 
-def load_design(path):
+def load_design(path, model=None):
     """Read a TOML design file; returns ``(design, options)``.
 
-    The file has a ``[film]`` table (``h``, and ``R`` or ``d`` with optional ``K``, ``nz``,
-    ``isotropy``) and exactly one of:
+    The file has a ``[film]`` table (``h``; ``R``, or ``d`` with a deformation model:
+    ``model = "M.toml"`` (a model file, relative to the design file) or ``K`` of the
+    paper's Eq. 3; optional ``nz``, ``isotropy``) and exactly one of:
 
     - ``[hinge]``: ``length``, optional ``width``, ``panel_length``, ``cell_size``, ``face``;
     - ``[layout]``: ``pixel`` and ``rows`` (strings of ``R T B S .``, first row on top);
-    - ``[masks]``: ``pixel``, ``top``, ``bottom`` (image paths relative to the file), optional ``film``.
+    - ``[masks]``: ``pixel``, ``top``, ``bottom`` (image paths relative to the file), optional
+      ``film``, and ``d_top``/``d_bottom`` where the two faces' coats differ.
 
     An optional ``[simulate]`` table is returned as ``options`` (``steps``, ``tol``,
     ``max_iter``, ``method``) for :func:`gdfe.simulate`.
+
+    Parameters
+    ----------
+    path : str or Path
+    model : DeformationModel or path of a model file, optional
+        A model that replaces the file's own (``gdfe simulate --model``).
     """
     try:
         import tomllib
@@ -346,18 +452,31 @@ def load_design(path):
     film = doc.get("film")
     if not isinstance(film, dict):
         raise GdfeError(f"{path.name}: missing [film] table (h, and R or d)")
-    known = {"h", "R", "d", "K", "nz", "isotropy"}
+    known = {"h", "R", "d", "K", "nz", "isotropy", "model"}
     unknown = set(film) - known
     if unknown:
         raise GdfeError(f"{path.name}: [film] has unknown key(s) {sorted(unknown)}; expected {sorted(known)}")
     h = film.get("h", DEFAULT_H)
-    K = film.get("K", PAPER_K)
-    if "R" in film:
-        R = film["R"]
-    elif "d" in film:
-        R = float(Calibration(K=K, h=h).ratio(film["d"]))
-    else:
-        raise GdfeError(f"{path.name}: [film] needs R (contraction ratio) or d (passive thickness, mm)")
+    R = film.get("R")
+    d = film.get("d")
+    if model is not None or "model" in film:
+        if R is not None:
+            raise GdfeError(f"{path.name}: [film] gives R and a deformation model; expected one of them")
+        if "K" in film:
+            raise GdfeError(f"{path.name}: [film] K is the paper's Eq. 3 coefficient; a deformation model "
+                            f"has its own parameters: remove K")
+        if model is None:
+            spec_model = film["model"]
+            if not isinstance(spec_model, str):
+                raise GdfeError(f"{path.name}: [film] model: expected the path of a model file, "
+                                f"got {spec_model!r}")
+            try:
+                model = as_model(spec_model, base=path.parent)
+            except GdfeError as exc:
+                raise GdfeError(f"{path.name}: [film] model: {exc}") from None
+        model = as_model(model)
+    elif R is None:
+        model = paper_model(film.get("K", PAPER_K))
     nz = film.get("nz", 2)
     iso = film.get("isotropy", 1.0)
     kinds = [k for k in ("hinge", "layout", "masks") if k in doc]
@@ -365,17 +484,20 @@ def load_design(path):
         raise GdfeError(f"{path.name}: expected exactly one of [hinge], [layout], [masks]; got {kinds or 'none'}")
     kind = kinds[0]
     spec = doc[kind]
+    if R is None and d is None and not (kind == "masks" and ("d_top" in spec or "d_bottom" in spec)):
+        raise GdfeError(f"{path.name}: [film] needs R (contraction ratio) or d (passive thickness, mm)")
     try:
         if kind == "hinge":
-            des = hinge(spec["length"], R=R, h=h, nz=nz, isotropy=iso,
+            des = hinge(spec["length"], d=d, R=R, h=h, nz=nz, isotropy=iso, model=model,
                         **{k: spec[k] for k in ("width", "panel_length", "cell_size", "face") if k in spec})
         elif kind == "layout":
-            des = from_rows(spec["rows"], R, h=h, pixel=spec["pixel"], nz=nz, isotropy=iso)
+            des = from_rows(spec["rows"], R, h=h, pixel=spec["pixel"], nz=nz, isotropy=iso, d=d, model=model)
         else:
             base = path.parent
             film_mask = base / spec["film"] if "film" in spec else None
             des = from_masks(base / spec["top"], base / spec["bottom"], spec["pixel"], R, h=h,
-                             nz=film.get("nz", 1), isotropy=iso, film=film_mask)
+                             nz=film.get("nz", 1), isotropy=iso, film=film_mask, d=d,
+                             d_top=spec.get("d_top"), d_bottom=spec.get("d_bottom"), model=model)
     except KeyError as exc:
         raise GdfeError(f"{path.name}: [{kind}] is missing {exc.args[0]!r}") from None
     des.meta.setdefault("source", str(path))

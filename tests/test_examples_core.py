@@ -22,9 +22,10 @@ def test_tube_closes():
     design, options = gdfe.load_design(EXAMPLES / "tube.toml")
     res = gdfe.simulate(design, **options).check()
     turn = gdfe.curvature_profile(res)["turn"]
-    # twelve hinges of (1 - R) L / h = 0.517 rad each (Eq. 2; tube.toml: R = 0.7, h = 0.29 mm,
-    # L = two 0.25 mm pixels): about one full turn
-    assert turn == pytest.approx(12 * 0.3 * 0.5 / 0.29, rel=0.05)
+    # twelve hinges of (1 - R) L / h = 0.526 rad each (Eq. 2; tube.toml: d = 0.33 mm, so
+    # R = 0.6947 by Eq. 3, h = 0.29 mm, L = two 0.25 mm pixels): about one full turn
+    R = gdfe.paper_model().ratio(0.33)
+    assert turn == pytest.approx(12 * (1 - R) * 0.5 / 0.29, rel=0.05)
 
 
 def test_refinement_study_converges(tmp_path):

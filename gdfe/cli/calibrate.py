@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gdfe._validation import check_int, check_positive
-from gdfe.calibration import READINGS
+from gdfe._validation import GdfeError, check_int, check_positive
+from gdfe.calibration import READINGS, held_out_rmse
 from gdfe.cli._common import emit
 
 __all__ = ["register", "run"]
@@ -21,6 +21,8 @@ def register(sub):
                    help="reading of Eq. 1 (default eq1, as printed)")
     p.add_argument("--boot", type=int, default=2000, help="bootstrap resamples for the 95 %% CI (default 2000)")
     p.add_argument("--d", type=float, default=None, help="also print Eq. 3's R for this passive thickness [mm]")
+    p.add_argument("--model-out", type=Path, default=None, metavar="M.toml",
+                   help="save the fitted reading as a deformation model file (one --model, not all)")
     p.add_argument("--json", action="store_true", help="print the fit as JSON")
     p.set_defaults(func=run)
 
@@ -29,6 +31,8 @@ def run(args):
     import gdfe
 
     check_int("--boot", args.boot, minimum=0)
+    if args.model_out is not None and args.model == "all":
+        raise GdfeError("--model-out: expected one --model (eq1, eq1-d1 or power), got all")
     tests = gdfe.load_folding_tests(args.data)
     if args.d is not None:
         check_positive("--d", args.d)
@@ -44,6 +48,15 @@ def run(args):
         if args.d is not None:
             d["R_at_d"] = {"d_mm": args.d, "h_mm": h, "R": float(f.ratio(args.d, h))}
             block += f"\nR      {d['R_at_d']['R']:.4f} at d = {args.d:g} mm (Eq. 3 of this reading, h = {h:g} mm)"
+        loo = held_out_rmse(tests, m)
+        d["held_out_rmse"] = loo
+        block += f"\nLOO    {loo:.4f} rad (leave-one-test-out RMSE)"
+        if args.model_out is not None:
+            model = gdfe.DeformationModel.from_calibration(f, data=args.data, held_out_rmse=loo)
+            model.save(args.model_out)
+            d["model_file"] = str(args.model_out)
+            block += f"\nwrote  {args.model_out} (deformation model {model.name!r})"
+            block += "".join(f"\nWARNING: {w}" for w in model.warnings)
         out.append(d)
         text.append(block)
     emit(out[0] if len(out) == 1 else out, args.json, "\n\n".join(text))

@@ -21,6 +21,8 @@ def register(sub):
     g = p.add_mutually_exclusive_group()
     g.add_argument("--K", type=float, default=None, help=f"coefficient K of Eq. 1 (default {paper.K:g})")
     g.add_argument("--R", type=float, default=None, help="contraction ratio, overriding Eq. 3")
+    g.add_argument("--model", type=Path, default=None,
+                   help="deformation model file (TOML, from gdfe calibrate/diagnose --model-out): R from --d")
     p.add_argument("--width", type=float, default=0.5, help="strip width [mm] (default 0.5)")
     p.add_argument("--panel-length", type=float, default=1.0, help="length of each panel [mm]")
     p.add_argument("--cells", type=int, default=16, help="cells across the hinge (default 16)")
@@ -38,11 +40,14 @@ def run(args):
 
     if args.d is None and args.R is None:
         raise GdfeError("give --d (passive thickness, mm) or --R (contraction ratio)")
+    model = gdfe.load_model(args.model) if args.model is not None else None
+    if model is not None and args.d is None:
+        raise GdfeError("--model: expected --d too (the model gives R from the passive thickness)")
     K = gdfe.PAPER_K if args.K is None else args.K
     check_int("--cells", args.cells)
     design = gdfe.hinge(args.length, d=args.d, h=args.h, K=K, R=args.R, width=args.width,
                         panel_length=args.panel_length, cell_size=args.length / args.cells, nz=args.nz,
-                        isotropy=args.isotropy)
+                        isotropy=args.isotropy, model=model)
     res = solve(design, args)
     alpha = gdfe.fold_angle(res)
     R = float(design.meta["R"])
@@ -56,14 +61,22 @@ def run(args):
         "iterations": res.iterations, "converged": res.converged, "residual": res.residual,
         "seconds": res.seconds, "n_elements": design.n_cells, "method": res.method,
     }
-    ref = out["alpha_eq1_rad"] if out["alpha_eq1_rad"] is not None else out["alpha_eq2_rad"]
+    if model is not None:
+        out["model"] = model.as_dict()
+        out["alpha_model_rad"] = float(model.hinge_angle(args.length, args.d, args.h))
+    if model is not None:
+        ref = out["alpha_model_rad"]
+    else:
+        ref = out["alpha_eq1_rad"] if out["alpha_eq1_rad"] is not None else out["alpha_eq2_rad"]
     out["error_rad"] = alpha - ref
     if args.out:
         out["title"] = f"hinge L={args.length:g} mm, alpha={alpha:.4f} rad"
         out["files"] = write_outputs(res, args.out, "hinge", out)
     text = (f"hinge L={args.length:g} mm, d={args.d} mm, h={args.h:g} mm, R={R:.4f}\n"
             f"  GDFE fold angle  {alpha:.4f} rad ({math.degrees(alpha):.1f} deg)\n"
-            + (f"  Eq. 1            {out['alpha_eq1_rad']:.4f} rad (error {out['error_rad']:+.4f})\n"
+            + (f"  model {model.name}: closed form {out['alpha_model_rad']:.4f} rad (error {out['error_rad']:+.4f})\n"
+               if model is not None else
+               f"  Eq. 1            {out['alpha_eq1_rad']:.4f} rad (error {out['error_rad']:+.4f})\n"
                if out["alpha_eq1_rad"] is not None else "")
             + f"  Eq. 2 (1-R)L/h   {out['alpha_eq2_rad']:.4f} rad\n"
             f"  {'converged' if res.converged else 'NOT CONVERGED'} in {res.iterations} iterations "

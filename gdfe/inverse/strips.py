@@ -4,7 +4,7 @@ A strip is a :class:`gdfe.Design` one column of cells per step along x (e.g.
 :meth:`gdfe.inverse.StripPattern.design`). By Eq. 2 a column whose cells contract on one
 face turns at the rate
 
-    k = sign (1 - R) / h        (sign +1 for ``CONTRACT_TOP``, -1 for ``CONTRACT_BOTTOM``),
+    k = (c_top - c_bottom) / h        (c = 1 - R of each face, 0 where coated),
 
 averaged over the column's cells. :func:`bent_start` integrates these rates along the strip
 into a starting shape, :func:`simulate_strip` solves from it, and :func:`strip_midline` reads
@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from gdfe._validation import check_instance
-from gdfe.design import Design, Material
+from gdfe.design import Design
 
 __all__ = ["bent_start", "simulate_strip", "strip_midline"]
 
@@ -28,9 +28,8 @@ def _column_rates(design):
     mesh = design.mesh
     ci = mesh.cell_ij[:, 0]
     ncol = int(ci.max()) + 1
-    sign = np.where(design.material == Material.CONTRACT_TOP, 1.0,
-                    np.where(design.material == Material.CONTRACT_BOTTOM, -1.0, 0.0))
-    rate = sign * (1.0 - design.R) / design.h
+    top, bottom = design.face_contraction()  # a deformation model may have spread or capped them
+    rate = (top - bottom) / design.h
     return np.bincount(ci, rate, ncol) / np.maximum(np.bincount(ci, minlength=ncol), 1)
 
 

@@ -15,6 +15,7 @@ import numpy as np
 
 from gdfe._validation import check_array, check_choice, check_instance, check_int
 from gdfe.design import Design
+from gdfe.model import as_model
 from gdfe.solver.methods import METHODS, Solver, auto_method, check_tol
 from gdfe.solver.starts import flat_start, multilevel_start
 
@@ -99,7 +100,7 @@ class Result:
 
 
 def simulate(design, *, method="auto", init="auto", steps=1, tol=1e-7, max_iter=None,
-             history=6, seed=0):
+             history=6, seed=0, model=None):
     """Simulate the heat-activated shape change of a design.
 
     Parameters
@@ -138,6 +139,10 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=1e-7, max_iter=
         Anderson history length.
     seed : int
         Seed of the perturbation used by ``init="flat"``.
+    model : DeformationModel or path of a model file, optional
+        Simulate the design with the contractions this deformation model gives its cells
+        (:meth:`gdfe.DeformationModel.apply`; the design must carry its passive thickness
+        ``d``) instead of those it was made with.
 
     Returns
     -------
@@ -147,6 +152,8 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=1e-7, max_iter=
     """
     method = check_choice("method", method, METHODS)
     check_instance("design", design, Design)
+    if model is not None:
+        design = as_model(model).apply(design)
     if method == "auto":
         method = auto_method(design)
     if isinstance(init, str):

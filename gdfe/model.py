@@ -1,0 +1,714 @@
+"""Deformation models: how a printed film deforms, one object for the whole package.
+
+A :class:`DeformationModel` says what contraction every cell of a design reaches, from the
+film thickness ``h``, the passive thickness ``d`` printed on each cell, the design's geometry
+and, where the model uses them, process variables (oven temperature, batch). It is made
+once — the paper's principle (:func:`paper_model`), a calibration refitted to folding tests
+(:meth:`DeformationModel.from_calibration`, ``gdfe calibrate --model-out``) or the model a
+diagnosis chose (:meth:`DeformationModel.from_effect_fit`, ``gdfe diagnose --model-out``)
+— saved as a TOML model file (:meth:`DeformationModel.save`, :func:`load_model`), and used
+by every design builder (``model=``), :func:`gdfe.simulate`, inverse design and the studies.
+
+The contraction of a cell's free face, ``c = 1 - R``, is built in stages, the stages of the
+diagnosis's hinge model (:mod:`gdfe.diagnosis.effects`) carried to any design:
+
+1. **principle** — ``c(d, h)`` of a coat of thickness ``d`` on the film:
+
+   ==============  ==================================  =====================
+   principle       contraction ``c = 1 - R``           parameters
+   ==============  ==================================  =====================
+   ``eq1``         ``K (h/d)^1.5`` (Eq. 3, the paper)  K
+   ``eq1-d1``      ``K h (h/d)^0.5``                   K [1/mm]
+   ``power``       ``K (h/d)^p``                       K, p
+   ``timoshenko``  ``h kappa_T(h, d)``                 E_ratio, mismatch
+   ==============  ==================================  =====================
+
+   ``kappa_T`` is Timoshenko's bilayer curvature (:func:`gdfe.timoshenko.bilayer_curvature`):
+   the ``passive_stiffness`` effect of the diagnosis.
+2. **per-cell mechanisms** on ``c``: ``cure_depth`` (every passive region acts as
+   ``d + delta``), ``film_thickening`` (the film thickens as it shrinks, ``h (1 + beta c)``:
+   the fold's curvature ``c / h`` becomes ``c / (h (1 + beta c))``, so a cell contracts by
+   ``c / (1 + beta c)`` on the film it is meshed on).
+3. **geometric mechanisms**, which need the design's layout: ``saturation`` (the fold of
+   every free run of film between two coat edges, of width ``w``, is capped as
+   ``alpha_max tanh(alpha / alpha_max)`` with ``alpha = c (w + lambda) / h``: each cell of the
+   run contracts by ``c tanh(alpha / alpha_max) / (alpha / alpha_max)``; a phenomenological
+   cap, see :data:`MECHANISMS`), and ``hinge_length`` (the contraction reaches ``lambda / 2``
+   past every coat edge, so a hinge of width ``L`` folds like ``L + lambda``; cells the edge
+   crosses contract by the fraction of their width it covers, so ``lambda`` acts continuously;
+   a negative ``lambda`` takes the contraction back from the free side).
+
+For the paper's hinge specimen (:func:`gdfe.hinge`) the stages give the diagnosis's closed
+form, ``alpha = alpha_max tanh(c(d + delta) (L + lambda) / (h (1 + beta c) alpha_max))``, up to
+GDFE's discretisation (tested).
+
+A cell free on both faces (``FREE_SHRINK``) has no coat to bend against: the bilayer
+principle does not apply to it, and it shrinks by the model's contraction at the design's
+nominal passive thickness (the paper's single R). Lengths in mm, angles in rad.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime
+import hashlib
+import logging
+import math
+from pathlib import Path
+
+import numpy as np
+
+from gdfe import paper
+from gdfe._validation import (GdfeError, GdfeFileNotFoundError, GdfeTypeError, check_choice, check_number,
+                              describe)
+
+__all__ = ["DeformationModel", "Parameter", "PRINCIPLES", "MECHANISMS", "paper_model", "load_model",
+           "as_model", "MODEL_FORMAT"]
+
+log = logging.getLogger(__name__)
+
+#: Version of the model-file format written by :meth:`DeformationModel.save`.
+MODEL_FORMAT = 1
+
+
+@dataclasses.dataclass(frozen=True)
+class _Term:
+    params: tuple
+    units: tuple
+    text: str
+
+
+#: The deformation principles: their parameters, units and formula.
+PRINCIPLES = {
+    "eq1": _Term(("K",), ("",), "c = K (h/d)^1.5 (Eq. 3)"),
+    "eq1-d1": _Term(("K",), ("1/mm",), "c = K h (h/d)^0.5"),
+    "power": _Term(("K", "p"), ("", ""), "c = K (h/d)^p"),
+    "timoshenko": _Term(("E_ratio", "mismatch"), ("", ""), "c = h kappa_T(h, d) (Timoshenko bilayer)"),
+}
+
+#: The mechanisms a model may switch on, in the order they act (see the module docstring).
+MECHANISMS = {
+    "cure_depth": _Term(("delta",), ("mm",), "every passive region acts as d + delta"),
+    "film_thickening": _Term(("beta",), ("",), "the film thickens to h (1 + beta c) as it shrinks"),
+    "saturation": _Term(("alpha_max",), ("rad",),
+                        "the fold of every free run between coat edges is capped as alpha_max tanh(alpha/alpha_max); "
+                        "phenomenological: it carries the diagnosed cap to any design, it does not explain it"),
+    "hinge_length": _Term(("lambda",), ("mm",), "the contraction reaches lambda/2 past every coat edge"),
+}
+
+#: Ranges [lo, hi] outside which a parameter is physically doubtful, and why. A model
+#: with such a parameter carries a warning (in the file and wherever it is used).
+PHYSICAL_RANGES = {
+    "K": (0.0, math.inf, "a contraction coefficient is positive"),
+    "p": (0.0, 5.0, "the exponent of h/d of a bilayer lies between 0 and about 3"),
+    "E_ratio": (0.01, 100.0, "printed acrylates and polystyrene near its glass transition differ by at most ~100x"),
+    "mismatch": (0.0, 0.6, "pre-strained polystyrene shrinks in-plane by at most 50-60 %"),
+    "delta": (-0.1, 0.1, "a DLP cure depth error is tens of micrometres, not the coat itself"),
+    "lambda": (-0.5, 1.0, "resin bleed or film under the coat edge reaches a few tenths of a mm, "
+                          "not the size of the hinges themselves"),
+    "beta": (0.0, 2.0, "volume conservation of an in-plane shrink c thickens the film by at most ~2c"),
+    "alpha_max": (0.5, 2 * math.pi, "a fold that stalls below 0.5 rad or beyond a full turn is not a cap"),
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class Parameter:
+    """A model parameter with its uncertainty.
+
+    Attributes
+    ----------
+    value : float
+    se : float or None
+        Standard error (None: not known).
+    ci95 : (2,) tuple of float or None
+        95 % interval (None: not known).
+    unit : str
+    at_bound : bool
+        The fit stopped at a bound of the parameter's range.
+    """
+
+    value: float
+    se: float | None = None
+    ci95: tuple | None = None
+    unit: str = ""
+    at_bound: bool = False
+
+    def as_dict(self):
+        out = {"value": self.value, "unit": self.unit}
+        if self.se is not None:
+            out["se"] = self.se
+        if self.ci95 is not None:
+            out["ci95"] = list(self.ci95)
+        if self.at_bound:
+            out["at_bound"] = True
+        return out
+
+
+def _provenance_file(path):
+    path = Path(path)
+    return {"file": path.name, "sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
+
+
+@dataclasses.dataclass(frozen=True)
+class DeformationModel:
+    """How a printed film deforms: a principle, mechanisms, parameters and where they came from.
+
+    Parameters
+    ----------
+    principle : {"eq1", "eq1-d1", "power", "timoshenko"}
+        See :data:`PRINCIPLES`.
+    params : dict of str -> Parameter or float
+        Every parameter of the principle and of the mechanisms.
+    mechanisms : tuple of str
+        Mechanisms switched on (:data:`MECHANISMS`), in any order.
+    name : str, optional
+        Default: the mechanisms joined by ``+`` (``"baseline"`` for none).
+    source : str
+        What made it (``"paper"``, ``"gdfe calibrate"``, ``"gdfe diagnose"``, ...).
+    data : dict
+        The data it was fitted to: ``file``, ``sha256``, ``n_tests``, ``held_out_rmse_rad``,
+        ``held_out`` (how it was held out).
+    warnings : tuple of str
+        Doubtful parameters and what they mean (:data:`PHYSICAL_RANGES` adds its own).
+    version : str
+        The gdfe version that made it.
+    """
+
+    principle: str
+    params: dict
+    mechanisms: tuple = ()
+    name: str | None = None
+    source: str = ""
+    data: dict = dataclasses.field(default_factory=dict)
+    warnings: tuple = ()
+    version: str = ""
+
+    def __post_init__(self):
+        check_choice("principle", self.principle, PRINCIPLES)
+        mech = tuple(self.mechanisms)
+        for m in mech:
+            check_choice("mechanism", m, MECHANISMS)
+        if len(set(mech)) != len(mech):
+            raise GdfeError(f"mechanisms: expected each mechanism at most once, got {list(mech)}")
+        mech = tuple(m for m in MECHANISMS if m in mech)
+        object.__setattr__(self, "mechanisms", mech)
+        params = {}
+        for k, v in dict(self.params).items():
+            params[k] = v if isinstance(v, Parameter) else Parameter(check_number(k, v))
+        needed = list(PRINCIPLES[self.principle].params) + [p for m in mech for p in MECHANISMS[m].params]
+        missing = [p for p in needed if p not in params]
+        if missing:
+            raise GdfeError(f"params: expected {', '.join(needed)} for principle {self.principle!r} and "
+                            f"mechanisms {list(mech) or 'none'}, missing {', '.join(missing)}")
+        extra = sorted(set(params) - set(needed))
+        if extra:
+            raise GdfeError(f"params: unexpected {', '.join(extra)}; expected {', '.join(needed)}")
+        units = dict(zip(PRINCIPLES[self.principle].params, PRINCIPLES[self.principle].units))
+        for m in mech:
+            units.update(zip(MECHANISMS[m].params, MECHANISMS[m].units))
+        for k, p in params.items():
+            check_number(k, p.value)
+            if not p.unit:
+                params[k] = dataclasses.replace(p, unit=units[k])
+        self._check_admissible(params)
+        object.__setattr__(self, "params", {k: params[k] for k in needed})
+        if self.name is None:
+            object.__setattr__(self, "name", "+".join(mech) if mech else "baseline")
+        object.__setattr__(self, "warnings", tuple(self.warnings) + tuple(
+            w for w in self.doubts() if w not in self.warnings))
+        object.__setattr__(self, "data", dict(self.data))
+
+    @staticmethod
+    def _check_admissible(params):
+        """Values no film can have (the model would be meaningless), unlike doubtful ones."""
+        for k in ("K", "E_ratio", "alpha_max"):
+            if k in params and not params[k].value > 0:
+                raise GdfeError(f"{k}: expected a positive number, got {params[k].value:g}")
+        if "mismatch" in params and not 0 < params["mismatch"].value < 1:
+            raise GdfeError(f"mismatch: expected a strain in (0, 1), got {params['mismatch'].value:g}")
+        if "beta" in params and params["beta"].value < 0:
+            raise GdfeError(f"beta: expected a thickening >= 0, got {params['beta'].value:g}")
+
+    # -- what the model says -------------------------------------------------------------------
+    def value(self, name):
+        """The value of parameter ``name``."""
+        return self.params[name].value
+
+    def doubts(self):
+        """Sentences on parameters at a bound of their fit or outside :data:`PHYSICAL_RANGES`."""
+        out = []
+        for k, p in self.params.items():
+            lo, hi, why = PHYSICAL_RANGES.get(k, (-math.inf, math.inf, ""))
+            unit = f" {p.unit}" if p.unit else ""
+            if p.at_bound:
+                out.append(f"{k} = {p.value:.4g}{unit} stopped at a bound of its fit: the data do not "
+                           f"determine it, and the model extrapolates")
+            if not lo <= p.value <= hi:
+                out.append(f"{k} = {p.value:.4g}{unit} is outside the physical range [{lo:g}, {hi:g}] "
+                           f"({why}): the fit uses it to absorb something else; trust the model's "
+                           f"predictions only near the data it was fitted to")
+        return out
+
+    def contraction(self, d, h):
+        """Contraction ``c = 1 - R`` of a free face on a coat of thickness ``d`` [mm], film ``h`` [mm].
+
+        Stages 1 and 2 (principle, ``cure_depth``, ``film_thickening``); the geometric
+        mechanisms need a design (:meth:`apply`).
+
+        Raises
+        ------
+        GdfeError
+            Where ``c >= 1`` (R <= 0: a film that would have to vanish), naming ``d``.
+        """
+        d = np.asarray(d, float)
+        h = np.asarray(h, float)
+        d_eff = d + self.value("delta") if "cure_depth" in self.mechanisms else d
+        if np.any(d_eff <= 0):
+            bad = np.atleast_1d(d)[np.atleast_1d(d_eff <= 0)][0]
+            raise GdfeError(f"d: {bad:g} mm with cure_depth delta = {self.value('delta'):g} mm leaves no coat "
+                            f"(model {self.name!r})")
+        c = self._principle(d_eff, h)
+        if "film_thickening" in self.mechanisms:
+            c = c / (1.0 + self.value("beta") * c)
+        if np.any(~(c < 1)):
+            bad_mask = np.atleast_1d(~(c < 1))
+            bad = float(np.atleast_1d(np.broadcast_to(d, np.shape(c)))[bad_mask][0])
+            hb = float(np.atleast_1d(np.broadcast_to(h, np.shape(c)))[bad_mask][0])
+            cb = float(np.atleast_1d(c)[bad_mask][0])
+            raise GdfeError(f"d={bad:g} mm gives R={1 - cb:.4g} by model {self.name!r} ({self.describe_principle()}, "
+                            f"h={hb:g} mm); a contraction ratio must lie in (0, 1], which needs "
+                            f"d > {self.d_min(hb):.4g} mm")
+        return c
+
+    def d_min(self, h=paper.H):
+        """Thinnest passive layer [mm] for which the model gives R > 0 at film thickness ``h``."""
+        from scipy.optimize import brentq
+
+        def excess(log_d):
+            with np.errstate(all="ignore"):
+                c = self._stage_c(np.exp(log_d), h)
+            return (c if np.isfinite(c) else 2.0) - 1.0
+
+        lo, hi = np.log(1e-6), np.log(1e3)
+        if excess(lo) < 0:  # never reaches R <= 0 (e.g. a thickening film)
+            return 0.0
+        if excess(hi) >= 0:
+            return math.inf
+        return float(np.exp(brentq(excess, lo, hi, xtol=1e-12)))
+
+    def _stage_c(self, d, h):
+        """Stages 1-2 without checks (:meth:`contraction`'s formula)."""
+        d_eff = d + self.value("delta") if "cure_depth" in self.mechanisms else d
+        if d_eff <= 0:
+            return math.inf
+        c = float(self._principle(d_eff, h))
+        if "film_thickening" in self.mechanisms:
+            c = c / (1.0 + self.value("beta") * c)
+        return c
+
+    def ratio(self, d, h=paper.H):
+        """Contraction ratio ``R = 1 - c`` for passive thickness ``d`` [mm] (see :meth:`contraction`)."""
+        return 1.0 - self.contraction(d, h)
+
+    def _principle(self, d, h):
+        p = {k: v.value for k, v in self.params.items()}
+        if self.principle == "eq1":
+            return p["K"] * (h / d) ** 1.5
+        if self.principle == "eq1-d1":
+            return p["K"] * h * np.sqrt(h / d)
+        if self.principle == "power":
+            return p["K"] * (h / d) ** p["p"]
+        from gdfe.timoshenko import bilayer_curvature
+
+        return h * bilayer_curvature(h, d, p["E_ratio"], p["mismatch"])
+
+    def hinge_angle(self, L, d, h=paper.H):
+        """The model's closed form for the paper's hinge specimen [rad] (what :meth:`apply` gives
+        a hinge of width ``L`` up to GDFE's discretisation)."""
+        c = self.contraction(d, h)
+        L = np.asarray(L, float)
+        if "hinge_length" in self.mechanisms:
+            L = L + self.value("lambda")
+        alpha = c * L / h
+        if "saturation" in self.mechanisms:
+            am = self.value("alpha_max")
+            alpha = am * np.tanh(alpha / am)
+        return alpha
+
+    def describe_principle(self):
+        return PRINCIPLES[self.principle].text + ", " + ", ".join(
+            f"{k} = {self.value(k):.4g}" for k in PRINCIPLES[self.principle].params)
+
+    def text(self):
+        """Human-readable description (what the CLI prints)."""
+        lines = [f"deformation model {self.name!r} ({self.source or 'given'}): {self.describe_principle()}"]
+        for m in self.mechanisms:
+            par = ", ".join(f"{k} = {self.value(k):.4g} {self.params[k].unit}".rstrip()
+                            for k in MECHANISMS[m].params)
+            lines.append(f"  {m}: {par} ({MECHANISMS[m].text})")
+        if self.data.get("n_tests"):
+            held = self.data.get("held_out_rmse_rad")
+            lines.append(f"  fitted to {self.data.get('file', '?')} ({self.data['n_tests']} tests)"
+                         + (f", held-out RMSE {held:.3f} rad ({self.data.get('held_out', '')})" if held is not None else ""))
+        for w in self.warnings:
+            lines.append(f"  WARNING: {w}")
+        return "\n".join(lines)
+
+    # -- the model on a design -------------------------------------------------------------------
+    def apply(self, design):
+        """The design with every cell's contraction from this model.
+
+        Parameters
+        ----------
+        design : Design
+            Its cells carry the passive thickness ``design.d`` they were printed with.
+
+        Returns
+        -------
+        Design
+            A copy with ``R`` (per cell, from its ``d``), the explicit per-face contraction
+            where a geometric mechanism acts, and ``model`` set to this model.
+        """
+        from gdfe.material import Material
+
+        if not hasattr(design, "face_contraction") or not hasattr(design, "material"):
+            raise GdfeTypeError(f"design: expected a gdfe.Design, got {type(design).__name__}")
+        mat = design.material
+        one_side = (mat == Material.CONTRACT_TOP) | (mat == Material.CONTRACT_BOTTOM)
+        free = mat == Material.FREE_SHRINK
+        d = design.d
+        if d is None or np.any(~np.isfinite(d[one_side])):
+            raise GdfeError("design: the model needs the passive thickness d of every cell coated on one face; "
+                            "build the design with d (e.g. gdfe.hinge(L, d=0.33)) or give R instead of a model")
+        R = np.ones(design.n_cells)
+        if one_side.any():
+            R[one_side] = 1.0 - self.contraction(d[one_side], design.h)
+        if free.any():
+            d0 = design.meta.get("d_mm")
+            d0 = float(np.nanmedian(d[one_side])) if d0 is None and one_side.any() else d0
+            if d0 is None:
+                raise GdfeError("design: cells free on both faces shrink by the model's contraction at the "
+                                "design's nominal d; give d")
+            R[free] = 1.0 - self.contraction(float(d0), design.h)
+        out = dataclasses.replace(design, R=R, contraction=None, model=self)
+        if "saturation" in self.mechanisms or "hinge_length" in self.mechanisms:
+            out = dataclasses.replace(out, contraction=self._geometric(out))
+        return out
+
+    def _geometric(self, design):
+        """Per-face contraction ``(m, 2)`` after ``saturation`` and ``hinge_length``."""
+        top, bottom = design.face_contraction()
+        grid = _ColumnGrid(design)
+        lam = self.value("lambda") if "hinge_length" in self.mechanisms else 0.0
+        faces = []
+        for c in (top, bottom):
+            c2 = grid.to_grid(c)
+            free = grid.present & (c2 > 0)
+            coated = grid.present & ~free
+            if "saturation" in self.mechanisms:
+                w = np.minimum(_run_width(free, coated, 0) * grid.dx, _run_width(free, coated, 1) * grid.dy)
+                capped = free & np.isfinite(w) & (w + lam > 0)
+                alpha = np.where(capped, c2 * np.where(capped, w + lam, 0.0) / design.h, 0.0)
+                am = self.value("alpha_max")
+                s = np.ones_like(c2)
+                s[capped] = np.tanh(alpha[capped] / am) / (alpha[capped] / am)
+                c2 = c2 * s
+            if lam != 0.0:
+                c2 = _spread(c2, free, coated, lam, grid.dx, grid.dy)
+            faces.append(grid.to_cells(c2))
+        return np.column_stack(faces)
+
+    # -- files ----------------------------------------------------------------------------------
+    def as_dict(self):
+        out = {"format": MODEL_FORMAT, "name": self.name, "principle": self.principle,
+               "mechanisms": list(self.mechanisms), "source": self.source,
+               "gdfe_version": self.version,
+               "parameters": {k: p.as_dict() for k, p in self.params.items()}}
+        if self.data:
+            out["data"] = dict(self.data)
+        out["warnings"] = list(self.warnings)
+        return out
+
+    def save(self, path):
+        """Write the model as a TOML file (renamed into place when complete); return the path."""
+        import tomli_w
+
+        from gdfe.io import write_text
+
+        head = (f"# gdfe deformation model: {self.describe_principle()}"
+                + (f"; mechanisms {', '.join(self.mechanisms)}" if self.mechanisms else "") + "\n"
+                "# read with gdfe.load_model(PATH), gdfe simulate --model PATH, or [film] model = PATH\n")
+        doc = {k: v for k, v in self.as_dict().items() if v not in (None, "")}
+        return write_text(path, head + tomli_w.dumps(doc))
+
+    @classmethod
+    def load(cls, path):
+        """Read a model file written by :meth:`save`, checking every key and value."""
+        return load_model(path)
+
+    # -- makers ---------------------------------------------------------------------------------
+    @classmethod
+    def from_calibration(cls, fit, data=None, held_out_rmse=None):
+        """The model of a reading of Eq. 1 fitted to folding tests (:func:`gdfe.fit_reading`).
+
+        Parameters
+        ----------
+        fit : CalibrationFit
+        data : path, optional
+            The CSV it was fitted to (its name and sha256 go into the model).
+        held_out_rmse : float, optional
+            Its leave-one-out RMSE [rad].
+        """
+        from gdfe._version import __version__
+
+        K = Parameter(fit.K, ci95=tuple(fit.K_ci) if fit.n else None)
+        params = {"K": K}
+        if fit.model == "power":
+            params["p"] = Parameter(fit.p, ci95=tuple(fit.p_ci) if fit.n else None)
+        info = _provenance_file(data) if data is not None else {}
+        info["n_tests"] = int(fit.n)
+        info["rmse_rad"] = float(fit.rmse)
+        if held_out_rmse is not None:
+            info["held_out_rmse_rad"] = float(held_out_rmse)
+            info["held_out"] = "leave one test out"
+        return cls(principle=fit.model, params=params, name=f"calibration {fit.model}",
+                   source="gdfe calibrate", data=info, version=__version__)
+
+    @classmethod
+    def from_effect_fit(cls, fit, data=None, n_tests=None, held_out="loo"):
+        """The model of a fitted catalogue effect of the diagnosis (:class:`gdfe.diagnosis.EffectFit`).
+
+        The diagnosis's hinge model (:class:`gdfe.diagnosis.Model`) becomes the same stages
+        on any design: ``passive_stiffness`` is the Timoshenko principle, the other effects
+        are mechanisms of the same names.
+        """
+        from gdfe._version import __version__
+
+        effects = tuple(fit.model.effects)
+        values = dict(zip(fit.model.param_names, np.asarray(fit.params, float)))
+        se = getattr(fit, "se", None)
+        se = dict(zip(fit.model.param_names, np.asarray(se, float))) if se is not None else {}
+        at_bound = set(getattr(fit, "at_bound", ()) or ())
+        params = {k: Parameter(float(v), se=_finite_or_none(se.get(k)), at_bound=k in at_bound)
+                  for k, v in values.items()}
+        unknown = [e for e in effects if e not in MECHANISMS and e != "passive_stiffness"]
+        if unknown:
+            raise GdfeError(f"effect: {', '.join(unknown)} has no mechanism on a design yet; expected one of "
+                            f"{', '.join(['passive_stiffness', *MECHANISMS])}")
+        principle = "timoshenko" if "passive_stiffness" in effects else "eq1"
+        info = _provenance_file(data) if data is not None else {}
+        if n_tests is not None:
+            info["n_tests"] = int(n_tests)
+        rmse = fit.held_out_rmse(held_out) if hasattr(fit, "held_out_rmse") else None
+        if rmse is not None and np.isfinite(rmse):
+            info["held_out_rmse_rad"] = float(rmse)
+            info["held_out"] = {"loo": "leave one test out", "logo": "leave one group out"}.get(held_out, held_out)
+        mech = tuple(e for e in effects if e != "passive_stiffness")
+        return cls(principle=principle, params=params, mechanisms=mech, name=fit.model.name,
+                   source="gdfe diagnose", data=info, version=__version__)
+
+
+def _finite_or_none(x):
+    return float(x) if x is not None and np.isfinite(x) else None
+
+
+def paper_model(K=paper.K):
+    """The paper's deformation principle: Eq. 3 with ``K`` (default the printed 0.3706)."""
+    return DeformationModel(principle="eq1", params={"K": K}, name="paper" if K == paper.K else "eq3",
+                            source="the GDFE paper (Eq. 3)" if K == paper.K else "Eq. 3")
+
+
+def as_model(model, base=None):
+    """A :class:`DeformationModel` from a model, a model file's path (relative to ``base``), or None."""
+    if model is None or isinstance(model, DeformationModel):
+        return model
+    if isinstance(model, (str, Path)):
+        path = Path(model)
+        if base is not None and not path.is_absolute():
+            path = Path(base) / path
+        return load_model(path)
+    raise GdfeTypeError(f"model: expected a gdfe.DeformationModel or the path of a model file, "
+                        f"got {type(model).__name__}")
+
+
+# -- reading model files --------------------------------------------------------------------------
+_TOP_KEYS = ("format", "name", "principle", "mechanisms", "source", "gdfe_version", "parameters", "data",
+             "warnings")
+_PARAM_KEYS = ("value", "unit", "se", "ci95", "at_bound")
+_DATA_KEYS = ("file", "sha256", "n_tests", "rmse_rad", "held_out_rmse_rad", "held_out")
+
+
+def _unknown(where, keys, known):
+    import difflib
+
+    for k in keys:
+        if k not in known:
+            near = difflib.get_close_matches(k, known, n=1)
+            hint = f" (did you mean {near[0]!r}?)" if near else ""
+            raise GdfeError(f"{where}: unknown key {k!r}{hint}; expected some of {', '.join(known)}")
+
+
+def _num(where, v, *, integer=False):
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not isinstance(v, int)):
+        raise GdfeError(f"{where}: expected {'an integer' if integer else 'a number'}, got {describe(v)}")
+    if not math.isfinite(v):
+        raise GdfeError(f"{where}: expected a finite number, got {v}")
+    return v
+
+
+def _str(where, v):
+    if not isinstance(v, str):
+        raise GdfeError(f"{where}: expected a string, got {describe(v)}")
+    return v
+
+
+def load_model(path):
+    """Read a deformation model file (TOML, :meth:`DeformationModel.save`).
+
+    Every key and value is checked: an unknown key (with a "did you mean"), a wrong type, a
+    parameter a film cannot have, a missing file — each is a :class:`gdfe.GdfeError` naming
+    the file and the key.
+    """
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python < 3.11
+        import tomli as tomllib
+    if isinstance(path, (bytes, bool)) or not isinstance(path, (str, Path)) or str(path) == "":
+        raise GdfeTypeError(f"model: expected the path of a model file, got {describe(path)}")
+    path = Path(path)
+    if not path.is_file():
+        raise GdfeFileNotFoundError(f"model file not found: {path}")
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise GdfeError(f"{path.name}: not a text file (expected a TOML model file)") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise GdfeError(f"{path.name}: not valid TOML: {exc}") from None
+    name = path.name
+    _unknown(name, doc, _TOP_KEYS)
+    for key in ("principle", "parameters"):
+        if key not in doc:
+            raise GdfeError(f"{name}: missing key {key!r}")
+    if "format" in doc and _num(f"{name}: format", doc["format"], integer=True) > MODEL_FORMAT:
+        raise GdfeError(f"{name}: format {doc['format']} is newer than this gdfe reads ({MODEL_FORMAT})")
+    principle = _str(f"{name}: principle", doc["principle"])
+    if principle not in PRINCIPLES:
+        raise GdfeError(f"{name}: principle: expected one of {', '.join(PRINCIPLES)}, got {principle!r}")
+    mech = doc.get("mechanisms", [])
+    if not isinstance(mech, list):
+        raise GdfeError(f"{name}: mechanisms: expected a list of names, got {describe(mech)}")
+    for m in mech:
+        if m not in MECHANISMS:
+            raise GdfeError(f"{name}: mechanisms: expected names among {', '.join(MECHANISMS)}, got {m!r}")
+    params = doc["parameters"]
+    if not isinstance(params, dict):
+        raise GdfeError(f"{name}: parameters: expected a table, got {describe(params)}")
+    parsed = {}
+    for k, spec in params.items():
+        where = f"{name}: parameters.{k}"
+        if isinstance(spec, (int, float)) and not isinstance(spec, bool):
+            spec = {"value": spec}
+        if not isinstance(spec, dict):
+            raise GdfeError(f"{where}: expected a number or a table with 'value', got {describe(spec)}")
+        _unknown(where, spec, _PARAM_KEYS)
+        if "value" not in spec:
+            raise GdfeError(f"{where}: missing key 'value'")
+        ci = spec.get("ci95")
+        if ci is not None and (not isinstance(ci, list) or len(ci) != 2):
+            raise GdfeError(f"{where}.ci95: expected [low, high], got {describe(ci)}")
+        at_bound = spec.get("at_bound", False)
+        if not isinstance(at_bound, bool):
+            raise GdfeError(f"{where}.at_bound: expected true or false, got {describe(at_bound)}")
+        parsed[k] = Parameter(value=float(_num(f"{where}.value", spec["value"])),
+                              se=None if spec.get("se") is None else float(_num(f"{where}.se", spec["se"])),
+                              ci95=None if ci is None else tuple(float(_num(f"{where}.ci95", x)) for x in ci),
+                              unit=_str(f"{where}.unit", spec.get("unit", "")), at_bound=at_bound)
+    data = doc.get("data", {})
+    if not isinstance(data, dict):
+        raise GdfeError(f"{name}: data: expected a table, got {describe(data)}")
+    _unknown(f"{name}: data", data, _DATA_KEYS)
+    for k in ("n_tests",):
+        if k in data:
+            _num(f"{name}: data.{k}", data[k], integer=True)
+    for k in ("rmse_rad", "held_out_rmse_rad"):
+        if k in data:
+            _num(f"{name}: data.{k}", data[k])
+    warnings = doc.get("warnings", [])
+    if not isinstance(warnings, list) or not all(isinstance(w, str) for w in warnings):
+        raise GdfeError(f"{name}: warnings: expected a list of strings, got {describe(warnings)}")
+    try:
+        model = DeformationModel(principle=principle, params=parsed, mechanisms=tuple(mech),
+                                 name=doc.get("name"), source=doc.get("source", ""), data=data,
+                                 warnings=tuple(warnings), version=doc.get("gdfe_version", ""))
+    except GdfeError as exc:
+        raise GdfeError(f"{name}: {exc}") from None
+    for w in model.warnings:
+        if w not in warnings:
+            log.warning("%s: %s", name, w)
+    return model
+
+
+# -- geometry of the mechanisms -------------------------------------------------------------------
+class _ColumnGrid:
+    """The in-plane grid of a design's cell columns (every layer of a column alike)."""
+
+    def __init__(self, design):
+        ij = design.mesh.cell_ij
+        self.i, self.j = ij[:, 0], ij[:, 1]
+        self.shape = (int(self.i.max()) + 1, int(self.j.max()) + 1)
+        self.dx, self.dy = (float(s) for s in design.mesh.spacing[:2])
+        self.present = np.zeros(self.shape, bool)
+        self.present[self.i, self.j] = True
+
+    def to_grid(self, values):
+        out = np.zeros(self.shape)
+        out[self.i, self.j] = values  # every layer of a column holds the same value
+        return out
+
+    def to_cells(self, grid):
+        return grid[self.i, self.j]
+
+
+def _run_width(free, coated, axis):
+    """Length (in cells) of every free cell's run along ``axis`` when a coated cell ends it on
+    both sides; ``inf`` where the run ends at the film's edge or a hole."""
+    f = np.moveaxis(free, axis, 0)
+    c = np.moveaxis(coated, axis, 0)
+    n = f.shape[0]
+    idx = np.arange(n)[:, None] * np.ones(f.shape[1:], int)[None]
+    stop = ~f  # a run ends at any cell that is not free
+    last = np.maximum.accumulate(np.where(stop, idx, -1), axis=0)  # previous stopping cell (or -1)
+    nxt = np.flip(np.minimum.accumulate(np.flip(np.where(stop, idx, n), 0), axis=0), 0)
+    cols = np.arange(f.shape[1])[None]
+    left_coat = np.where(last >= 0, c[np.clip(last, 0, n - 1), cols], False)
+    right_coat = np.where(nxt < n, c[np.clip(nxt, 0, n - 1), cols], False)
+    width = np.where(f & left_coat & right_coat, (nxt - last - 1).astype(float), np.inf)
+    return np.moveaxis(width, 0, axis)
+
+
+def _spread(c2, free, coated, lam, dx, dy):
+    """Contraction moved ``lam / 2`` across every coat edge (into the coat for ``lam > 0``,
+    out of the free side for ``lam < 0``), cells covered in part contracting by the fraction
+    of their width along the edge normal that the reach covers."""
+    from scipy.ndimage import distance_transform_edt
+
+    half = abs(lam) / 2.0
+    out = c2.copy()
+    if lam > 0:
+        target, into = free, coated  # cells of the coat take the contraction of the nearest free cell
+    else:
+        target, into = coated, free  # free cells give it up near the nearest coat
+    if not target.any() or not into.any():
+        return out
+    dist, (ii, jj) = distance_transform_edt(~target, sampling=(dx, dy), return_indices=True)
+    gi, gj = np.indices(c2.shape)
+    ux, uy = (gi - ii) * dx, (gj - jj) * dy
+    norm = np.hypot(ux, uy)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        width = np.where(norm > 0, (np.abs(ux) * dx + np.abs(uy) * dy) / norm, min(dx, dy))
+    frac = np.clip((half + width - dist) / width, 0.0, 1.0)
+    if lam > 0:
+        out = np.where(into, frac * c2[ii, jj], out)
+    else:
+        out = np.where(into, (1.0 - frac) * c2, out)
+    return out
