@@ -27,6 +27,7 @@ STUDIES = {
     "fig11": "studies.fig11_design_validation",
     "compare": "studies.compare_models",
     "blind-diagnosis": "studies.blind_diagnosis",
+    "transfer": "studies.transfer",
     "bench-scaling": "studies.bench_scaling",
 }
 
