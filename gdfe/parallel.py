@@ -1,19 +1,41 @@
-"""Run independent simulations in parallel, with a progress bar."""
+"""Run independent simulations in parallel: local processes (joblib) or a Dask cluster.
+
+:func:`parallel_map` is the one place the studies, the calibrations and the diagnosis
+benchmark spread their independent work. Without a scheduler it runs in local worker
+processes through joblib (or in this process); given the address of a Dask ``distributed``
+scheduler (``scheduler=`` or the environment variable ``GDFE_SCHEDULER``, which the command
+line's ``--scheduler ADDRESS`` sets) it sends every item to that cluster. The results are the
+same either way and come back in the order of the items: each item's computation is
+deterministic and runs whole on one worker.
+"""
 
 from __future__ import annotations
 
 import logging
 import os
 
-from gdfe._validation import check_int
+from gdfe._validation import GdfeError, check_int
 
-__all__ = ["parallel_map"]
+__all__ = ["parallel_map", "scheduler_address", "SCHEDULER_ENV"]
 
 log = logging.getLogger(__name__)
 
+#: Environment variable holding the address of a Dask scheduler (``tcp://host:8786``).
+SCHEDULER_ENV = "GDFE_SCHEDULER"
 
-def parallel_map(func, items, n_jobs=None, desc=None, progress=None):
-    """``[func(x) for x in items]``, spread over processes when joblib is installed.
+
+def scheduler_address(scheduler=None):
+    """The Dask scheduler to use: ``scheduler``, else ``$GDFE_SCHEDULER``, else None (local)."""
+    if scheduler is None:
+        scheduler = os.environ.get(SCHEDULER_ENV, "").strip() or None
+    if scheduler is not None and not isinstance(scheduler, str):
+        # a distributed.Client or a cluster object is accepted as it is
+        return scheduler
+    return scheduler
+
+
+def parallel_map(func, items, n_jobs=None, desc=None, progress=None, scheduler=None):
+    """``[func(x) for x in items]``, spread over processes or a Dask cluster.
 
     Parameters
     ----------
@@ -21,12 +43,15 @@ def parallel_map(func, items, n_jobs=None, desc=None, progress=None):
         A picklable (module-level) function of one argument.
     items : iterable
     n_jobs : int, optional
-        Worker processes; default the ``GDFE_JOBS`` environment variable, else the
-        number of CPU cores. 1 runs in this process.
+        Local worker processes; default the ``GDFE_JOBS`` environment variable, else the
+        number of CPU cores. 1 runs in this process. Ignored with a scheduler.
     desc : str, optional
         Label of the progress bar.
     progress : bool, optional
         Show a tqdm progress bar (default: when stderr is a terminal).
+    scheduler : str or distributed.Client, optional
+        Address of a Dask scheduler (``"tcp://10.0.0.5:8786"``), or a client; default
+        ``$GDFE_SCHEDULER``; None runs locally.
 
     Returns
     -------
@@ -34,13 +59,16 @@ def parallel_map(func, items, n_jobs=None, desc=None, progress=None):
         Results in the order of ``items``.
     """
     items = list(items)
-    if n_jobs is None:
-        n_jobs = int(os.environ.get("GDFE_JOBS", os.cpu_count() or 1))
-    n_jobs = check_int("n_jobs", n_jobs)
     if progress is None:
         import sys
 
         progress = sys.stderr.isatty()
+    scheduler = scheduler_address(scheduler)
+    if scheduler is not None and items:
+        return _dask_map(func, items, scheduler, desc, progress)
+    if n_jobs is None:
+        n_jobs = int(os.environ.get("GDFE_JOBS", os.cpu_count() or 1))
+    n_jobs = check_int("n_jobs", n_jobs)
     try:
         from tqdm.auto import tqdm
     except ModuleNotFoundError:  # progress bars are optional
@@ -68,3 +96,37 @@ def parallel_map(func, items, n_jobs=None, desc=None, progress=None):
     finally:
         if bar:
             bar.close()
+
+
+def _dask_map(func, items, scheduler, desc, progress):
+    """Every item as one task on a Dask cluster; results gathered in the order of the items."""
+    try:
+        from distributed import Client, as_completed
+    except ModuleNotFoundError:
+        raise GdfeError(f"scheduler: a Dask scheduler was given ({scheduler!r}) but the 'distributed' "
+                        f"package is not installed: pip install 'gdfe[cluster]'") from None
+    own = not hasattr(scheduler, "submit")
+    try:
+        client = Client(scheduler, timeout="10s") if own else scheduler
+    except OSError as exc:  # no scheduler at that address
+        raise GdfeError(f"scheduler: cannot reach the Dask scheduler at {scheduler!r} ({exc})") from None
+    try:
+        futures = client.map(func, items, pure=False)
+        index = {f.key: k for k, f in enumerate(futures)}
+        out = [None] * len(items)
+        try:
+            from tqdm.auto import tqdm
+        except ModuleNotFoundError:
+            tqdm = None
+        bar = tqdm(total=len(items), desc=desc, disable=not progress) if tqdm else None
+        for fut in as_completed(futures):
+            out[index[fut.key]] = fut.result()  # a task's own exception is raised here, with its traceback
+            if bar:
+                bar.update()
+        if bar:
+            bar.close()
+        log.info("%s: %d tasks on the Dask scheduler %s", desc or "parallel_map", len(items), client.scheduler.address)
+        return out
+    finally:
+        if own:
+            client.close()

@@ -155,28 +155,29 @@ def unit_angles(L, d, h, ratios=DEFAULT_RATIOS, *, model="fem", nu=0.35, width=1
     if model == "timoshenko":
         return np.stack([timoshenko_curvature(h, d, 1.0, r, -0.5) * L / 0.5 for r in ratios],
                         axis=1)
+    from gdfe.parallel import parallel_map
+
+    jobs = [(i, float(L[i]), float(d[i]), float(h[i]), tuple(ratios.tolist()), nu, width, resolution)
+            for i in range(L.size)]
+    rows = parallel_map(_unit_row, jobs, desc="linear hinge solves", progress=progress)
+    return np.array(rows).reshape(L.size, ratios.size)
+
+
+def _unit_row(job):
+    """One test's unit angles at every modulus ratio (one mesh, one linear solve per ratio)."""
     from .measure import fold_angle
     from .mesh import hinge_mesh
     from .solve import solve_linear
 
-    out = np.empty((L.size, ratios.size))
-    jobs = [(i, j) for i in range(L.size) for j in range(ratios.size)]
-    try:
-        from tqdm import tqdm
-
-        jobs = tqdm(jobs, desc="linear hinge solves", disable=not progress)
-    except ImportError:  # pragma: no cover
-        pass
-    strips = {}
-    for i, j in jobs:
-        if i not in strips:
-            strips = {i: hinge_mesh(L[i], d[i], h[i], width=width, resolution=resolution)}
-        mat = BilayerMaterial.from_ratio(ratios[j], _PROBE, nu=nu)
-        res = solve_linear(strips[i], mat)
+    i, L, d, h, ratios, nu, width, resolution = job
+    strip = hinge_mesh(L, d, h, width=width, resolution=resolution)
+    row = []
+    for r in ratios:
+        res = solve_linear(strip, BilayerMaterial.from_ratio(r, _PROBE, nu=nu))
         if not res.converged:
-            raise RuntimeError(f"linear solve failed for test {i} at E_ratio {ratios[j]}")
-        out[i, j] = fold_angle(res) / -_PROBE
-    return out
+            raise RuntimeError(f"linear solve failed for test {i} at E_ratio {r}")
+        row.append(fold_angle(res) / -_PROBE)
+    return row
 
 
 def _best_eps(a, alpha):

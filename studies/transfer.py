@@ -27,7 +27,7 @@ import math
 import numpy as np
 
 from gdfe import paper
-from studies._common import check_resolution, finish, headline, main_of, pyplot
+from studies._common import check_resolution, finish, headline, main_of, n_jobs, pyplot
 
 NAME = "transfer"
 H = paper.H
@@ -57,35 +57,47 @@ def _specimen(L, d, h, model, cells):
     return gdfe.hinge(L, d=d, h=h, model=model, panel_length=reach + max(1.0, 4 * cell), cell_size=cell)
 
 
+def _fold(job):
+    """One test held out: diagnose the others, save and read back the model, simulate the test."""
+    import gdfe
+    from gdfe.diagnosis import diagnose
+
+    i, cells, out = job
+    tests = gdfe.load_folding_tests(gdfe.TABLE1)
+    n = len(tests)
+    keep = np.arange(n) != i
+    sub = gdfe.FoldingTests(L=tests.L[keep], d=tests.d[keep], h=tests.h[keep], alpha=tests.alpha[keep],
+                            extra={k: v[keep] for k, v in tests.extra.items()})
+    diag = diagnose(sub, check=None)
+    model = gdfe.DeformationModel.from_effect_fit(diag.best, n_tests=n - 1)
+    if out is not None:  # through the file, as a user would
+        from pathlib import Path
+
+        path = model.save(Path(out) / "models" / f"without_test_{i + 1:02d}.toml")
+        model = gdfe.load_model(path)
+    L, d, h = float(tests.L[i]), float(tests.d[i]), float(tests.h[i])
+    res = gdfe.simulate(_specimen(L, d, h, model, cells))
+    refit = gdfe.paper_model(gdfe.fit_reading(sub, "eq1", n_boot=0).K)
+    res_k = gdfe.simulate(gdfe.hinge(L, d=d, h=h, model=refit, cell_size=_cell(L, cells)))
+    return {"test": i + 1, "L_mm": L, "d_mm": d, "h_mm": h, "measured_rad": float(tests.alpha[i]),
+            "model": model.name, "params": {k: p.value for k, p in model.params.items()},
+            "warnings": len(model.warnings),
+            "closed_form_rad": float(model.hinge_angle(L, d, h)),
+            "gdfe_rad": float(gdfe.fold_angle(res)), "gdfe_converged": bool(res.converged),
+            "refit_K_gdfe_rad": float(gdfe.fold_angle(res_k)), "refit_K_converged": bool(res_k.converged),
+            "n_cells": int(res.design.n_cells)}
+
+
 def held_out(resolution, out=None):
     """Part 1: each test predicted by the model diagnosed from the others, through GDFE."""
     import gdfe
     from gdfe.diagnosis import diagnose
+    from gdfe.parallel import parallel_map
 
-    tests = gdfe.load_folding_tests(gdfe.TABLE1)
-    n = len(tests)
+    n = len(gdfe.load_folding_tests(gdfe.TABLE1))
     cells = CELLS[resolution]
-    rows = []
-    for i in range(n):
-        keep = np.arange(n) != i
-        sub = gdfe.FoldingTests(L=tests.L[keep], d=tests.d[keep], h=tests.h[keep], alpha=tests.alpha[keep],
-                                extra={k: v[keep] for k, v in tests.extra.items()})
-        diag = diagnose(sub, check=None)
-        model = gdfe.DeformationModel.from_effect_fit(diag.best, n_tests=n - 1)
-        if out is not None:  # through the file, as a user would
-            path = model.save(out / "models" / f"without_test_{i + 1:02d}.toml")
-            model = gdfe.load_model(path)
-        L, d, h = float(tests.L[i]), float(tests.d[i]), float(tests.h[i])
-        res = gdfe.simulate(_specimen(L, d, h, model, cells))
-        refit = gdfe.paper_model(gdfe.fit_reading(sub, "eq1", n_boot=0).K)
-        res_k = gdfe.simulate(gdfe.hinge(L, d=d, h=h, model=refit, cell_size=_cell(L, cells)))
-        rows.append({"test": i + 1, "L_mm": L, "d_mm": d, "h_mm": h, "measured_rad": float(tests.alpha[i]),
-                     "model": model.name, "params": {k: p.value for k, p in model.params.items()},
-                     "warnings": len(model.warnings),
-                     "closed_form_rad": float(model.hinge_angle(L, d, h)),
-                     "gdfe_rad": float(gdfe.fold_angle(res)), "gdfe_converged": bool(res.converged),
-                     "refit_K_gdfe_rad": float(gdfe.fold_angle(res_k)), "refit_K_converged": bool(res_k.converged),
-                     "n_cells": int(res.design.n_cells)})
+    rows = parallel_map(_fold, [(i, cells, None if out is None else str(out)) for i in range(n)],
+                        n_jobs=n_jobs(resolution), desc="transfer: Table 1 folds")
     y = np.array([r["measured_rad"] for r in rows])
 
     def rmse(key):

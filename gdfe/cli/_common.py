@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
 import sys
 
 from gdfe.io import json_default
 
-__all__ = ["emit", "solver_args", "solve", "write_outputs", "exit_status"]
+__all__ = ["emit", "solver_args", "solve", "write_outputs", "exit_status", "scheduler_arg", "using_scheduler"]
 
 
 def emit(obj, as_json: bool, text: str) -> None:
@@ -16,6 +18,32 @@ def emit(obj, as_json: bool, text: str) -> None:
         print(json.dumps(obj, indent=2, default=json_default))
     else:
         print(text)
+
+
+def scheduler_arg(p):
+    """``--scheduler ADDRESS``: run the command's independent simulations on a Dask cluster."""
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="Dask scheduler (tcp://host:8786) for the independent simulations (default: "
+                        "$GDFE_SCHEDULER, else local processes)")
+
+
+@contextlib.contextmanager
+def using_scheduler(address):
+    """The command's :func:`gdfe.parallel.parallel_map` calls go to ``address`` (None: unchanged)."""
+    from gdfe.parallel import SCHEDULER_ENV
+
+    if address is None:
+        yield
+        return
+    old = os.environ.get(SCHEDULER_ENV)
+    os.environ[SCHEDULER_ENV] = address
+    try:
+        yield
+    finally:
+        if old is None:
+            os.environ.pop(SCHEDULER_ENV, None)
+        else:
+            os.environ[SCHEDULER_ENV] = old
 
 
 def solver_args(p, defaults_from_file=False):

@@ -8,7 +8,7 @@ scikit-fem is imported only when a subcommand runs.
 from __future__ import annotations
 
 from gdfe import paper
-from gdfe.cli._common import emit
+from gdfe.cli._common import emit, scheduler_arg, using_scheduler
 
 __all__ = ["register"]
 
@@ -67,6 +67,7 @@ def register(subparsers) -> None:
     p.add_argument("--resolution", choices=tuple(HINGE_RESOLUTIONS), default="default")
     p.add_argument("--nu", type=float, default=0.35, help="Poisson's ratio of both layers")
     p.add_argument("--json", action="store_true", help="print JSON")
+    scheduler_arg(p)
     p.set_defaults(func=_cmd_calibrate)
 
 
@@ -137,8 +138,9 @@ def _cmd_calibrate(args) -> int:
     from reference_fem import fit_to_table
 
     tests = load_folding_tests(TABLE1 if args.table is None else args.table)
-    fit = fit_to_table(tests.L, tests.d, tests.h, tests.alpha, model=args.model, nu=args.nu,
-                       resolution=args.resolution, progress=not args.json)
+    with using_scheduler(args.scheduler):
+        fit = fit_to_table(tests.L, tests.d, tests.h, tests.alpha, model=args.model, nu=args.nu,
+                           resolution=args.resolution, progress=not args.json)
     text = "\n".join([
         f"{args.model} fit to {len(tests)} folding tests ({fit.seconds:.0f} s)",
         f"  E_passive / E_active = {fit.E_ratio:.4g}{'  (at the edge of the grid)' if fit.at_bound else ''}",

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gdfe.cli._common import emit
+from gdfe.cli._common import emit, scheduler_arg, using_scheduler
 
 __all__ = ["register", "run"]
 
@@ -19,6 +19,7 @@ def register(sub):
     p.add_argument("--resolution", choices=RESOLUTIONS, default="default")
     p.add_argument("--only", nargs="+", choices=list(STUDIES), metavar="NAME", help="run only these studies")
     p.add_argument("--json", action="store_true", help="print the report's summary as JSON")
+    scheduler_arg(p)
     p.set_defaults(func=run)
 
 
@@ -27,7 +28,8 @@ def run(args):
     from studies.validation_report import build_report
 
     names = args.only or list(STUDIES)
-    summary = build_report(args.out, resolution=args.resolution, names=names)
+    with using_scheduler(args.scheduler):
+        summary = build_report(args.out, resolution=args.resolution, names=names)
     lines = [f"wrote {summary['index']}"]
     for s in summary["studies"]:
         lines.append(f"  {s['name']:<16} {s['status']:<8} {s.get('seconds', 0):6.1f} s  "

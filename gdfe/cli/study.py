@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from gdfe._validation import GdfeError
-from gdfe.cli._common import emit
+from gdfe.cli._common import emit, scheduler_arg, using_scheduler
 
 __all__ = ["register", "run"]
 
@@ -19,6 +19,7 @@ def register(sub):
     p.add_argument("--out", type=Path, default=None, help="output directory (default out/NAME)")
     p.add_argument("--resolution", choices=RESOLUTIONS, default="default")
     p.add_argument("--json", action="store_true", help="print the numbers as JSON")
+    scheduler_arg(p)
     p.set_defaults(func=run)
 
 
@@ -31,8 +32,9 @@ def run(args):
     except ModuleNotFoundError as exc:  # a study needing an extra that is not installed
         raise GdfeError(f"study {args.name} ({studies.STUDIES[args.name]}) is not available: {exc}") from None
     out = args.out if args.out is not None else Path("out") / args.name
-    if not hasattr(module, "NAME"):  # a study without the shared plumbing
-        result = module.run(resolution=args.resolution, out=out)
-        emit(result, args.json, f"{args.name}: wrote {out}")
-        return 0
-    return run_and_print(module, args.resolution, out, args.json)
+    with using_scheduler(args.scheduler):
+        if not hasattr(module, "NAME"):  # a study without the shared plumbing
+            result = module.run(resolution=args.resolution, out=out)
+            emit(result, args.json, f"{args.name}: wrote {out}")
+            return 0
+        return run_and_print(module, args.resolution, out, args.json)
