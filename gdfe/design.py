@@ -427,10 +427,14 @@ def load_design(path, model=None):
     - ``[hinge]``: ``length``, optional ``width``, ``panel_length``, ``cell_size``, ``face``;
     - ``[layout]``: ``pixel`` and ``rows`` (strings of ``R T B S .``, first row on top);
     - ``[masks]``: ``pixel``, ``top``, ``bottom`` (image paths relative to the file), optional
-      ``film``, and ``d_top``/``d_bottom`` where the two faces' coats differ.
+      ``film``, and ``d_top``/``d_bottom`` where the two faces' coats differ;
+    - ``[svg]`` or ``[fold]``: a drawing (:func:`gdfe.fabrication.drawings.drawing_design`).
+
+    A ``.svg`` or ``.fold`` file alone is read with the paper's film
+    (:func:`gdfe.fabrication.drawings.load_drawing`).
 
     An optional ``[simulate]`` table is returned as ``options`` (``steps``, ``tol``,
-    ``max_iter``, ``method``) for :func:`gdfe.simulate`.
+    ``max_iter``, ``method``, ``contact`` = ``"auto"``, ``"on"`` or ``"off"``) for :func:`gdfe.simulate`.
 
     Parameters
     ----------
@@ -445,6 +449,10 @@ def load_design(path, model=None):
     path = Path(path)
     if not path.is_file():
         raise GdfeFileNotFoundError(f"design file not found: {path}")
+    if path.suffix.lower() in (".svg", ".fold"):  # a drawing alone (gdfe.fabrication.drawings)
+        from gdfe.fabrication.drawings import load_drawing
+
+        return load_drawing(path, from_masks, model=model)
     try:
         doc = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as exc:
@@ -479,9 +487,10 @@ def load_design(path, model=None):
         model = paper_model(film.get("K", PAPER_K))
     nz = film.get("nz", 2)
     iso = film.get("isotropy", 1.0)
-    kinds = [k for k in ("hinge", "layout", "masks") if k in doc]
+    kinds = [k for k in ("hinge", "layout", "masks", "svg", "fold") if k in doc]
     if len(kinds) != 1:
-        raise GdfeError(f"{path.name}: expected exactly one of [hinge], [layout], [masks]; got {kinds or 'none'}")
+        raise GdfeError(f"{path.name}: expected exactly one of [hinge], [layout], [masks], [svg], [fold]; "
+                        f"got {kinds or 'none'}")
     kind = kinds[0]
     spec = doc[kind]
     if R is None and d is None and not (kind == "masks" and ("d_top" in spec or "d_bottom" in spec)):
@@ -492,6 +501,11 @@ def load_design(path, model=None):
                         **{k: spec[k] for k in ("width", "panel_length", "cell_size", "face") if k in spec})
         elif kind == "layout":
             des = from_rows(spec["rows"], R, h=h, pixel=spec["pixel"], nz=nz, isotropy=iso, d=d, model=model)
+        elif kind in ("svg", "fold"):  # a drawing with this file's film (gdfe.fabrication.drawings)
+            from gdfe.fabrication.drawings import drawing_design
+
+            des = drawing_design(kind, spec, path, lambda top, bottom, pixel, mask: from_masks(
+                top, bottom, pixel, R, h=h, nz=film.get("nz", 1), isotropy=iso, film=mask, d=d, model=model))
         else:
             base = path.parent
             film_mask = base / spec["film"] if "film" in spec else None
@@ -502,7 +516,9 @@ def load_design(path, model=None):
         raise GdfeError(f"{path.name}: [{kind}] is missing {exc.args[0]!r}") from None
     des.meta.setdefault("source", str(path))
     options = dict(doc.get("simulate", {}))
-    unknown = set(options) - {"steps", "tol", "max_iter", "method"}
+    unknown = set(options) - {"steps", "tol", "max_iter", "method", "contact"}
     if unknown:
         raise GdfeError(f"{path.name}: [simulate] has unknown key(s) {sorted(unknown)}")
+    if "contact" in options:  # the choices of gdfe.simulate's contact=
+        check_choice(f"{path.name}: [simulate] contact", options["contact"], ("auto", "on", "off"))
     return des, options

@@ -18,7 +18,8 @@ import numpy as np
 
 from gdfe._validation import GdfeTypeError
 
-__all__ = ["write_vtu", "write_series", "render_png", "write_json", "write_text", "surface_faces", "atomic_path",
+__all__ = ["write_vtu", "write_series", "render_png", "write_json", "write_text", "surface_faces", "boundary_quads",
+           "atomic_path",
            "json_default", "save_figure"]
 
 log = logging.getLogger(__name__)
@@ -94,8 +95,24 @@ def surface_faces(design):
     faces : (f, 4) int array
     owner : (f,) int array
     """
+    return boundary_quads(design.mesh.cells)
+
+
+def boundary_quads(cells):
+    """Boundary quadrilaterals of a hexahedral mesh (VTK vertex order), oriented outwards.
+
+    Parameters
+    ----------
+    cells : (m, 8) int array
+
+    Returns
+    -------
+    faces : (f, 4) int array
+    owner : (f,) int array
+        The cell each face belongs to.
+    """
     local = np.array([[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]])
-    cells = design.mesh.cells
+    cells = np.asarray(cells)
     faces = cells[:, local].reshape(-1, 4)
     key = np.sort(faces, axis=1)
     _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)

@@ -19,12 +19,12 @@ import sys
 import traceback
 
 from gdfe._validation import GdfeError
-from gdfe.cli import bench, calibrate, diagnose, fem, hinge, report, simulate, study
+from gdfe.cli import bench, calibrate, design, diagnose, fem, hinge, report, simulate, study, view
 
 __all__ = ["main", "build_parser", "SUBCOMMANDS"]
 
 #: The modules of the subcommands, in the order of ``gdfe --help``.
-SUBCOMMANDS = (hinge, simulate, fem, study, report, calibrate, diagnose, bench)
+SUBCOMMANDS = (hinge, simulate, design, view, fem, study, report, calibrate, diagnose, bench)
 
 #: Where bugs are reported.
 ISSUES = "the project's issue tracker"

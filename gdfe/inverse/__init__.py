@@ -24,6 +24,7 @@ from gdfe.inverse.pipeline import (StripCheck, StripPlan, Target, check_strip, m
                                    target_from_couples, target_from_letter, target_from_sketch)
 from gdfe.inverse.segmentation import (Segmentation, SketchFit, fit_segments, fit_sketch, segment_cost_matrix,
                                        tangent_graph)
+from gdfe.inverse.sources import CouplesFile, read_couples_toml, read_sketch, read_sketch_csv
 from gdfe.inverse.strips import bent_start, simulate_strip, strip_midline
 
 __all__ = [
@@ -34,4 +35,5 @@ __all__ = [
     "Glyph", "LETTERS", "glyph", "text_glyphs",
     "Target", "target_from_couples", "target_from_letter", "target_from_sketch", "midline_compensated",
     "StripPlan", "plan_strip", "StripCheck", "check_strip", "Deviation", "strip_deviation", "plot_deviation",
+    "CouplesFile", "read_couples_toml", "read_sketch", "read_sketch_csv",
 ]

@@ -135,8 +135,8 @@ def strip_deviation(plan, result):
 def plot_deviation(deviation, path, title=None):
     """A PNG overlay of the target (grey) and the aligned simulated mid-line, coloured by segment.
 
-    Each segment is labelled with its largest deviation [mm]; the point of the overall
-    largest one-sided distance to the target is marked.
+    Each segment is labelled ``index: largest deviation [mm]``; the mid-line point farthest
+    from the target is marked.
 
     Returns
     -------
@@ -148,7 +148,7 @@ def plot_deviation(deviation, path, title=None):
 
     plt = pyplot()
     dev = deviation
-    fig, ax = plt.subplots(figsize=(7, 6))
+    fig, ax = plt.subplots(figsize=(9, 6))
     T, A = dev.target, dev.aligned
     ax.plot(T[:, 0], T[:, 1], "-", color="0.65", lw=6, solid_capstyle="round", label="target")
     cmap = plt.get_cmap("tab10")
@@ -167,10 +167,10 @@ def plot_deviation(deviation, path, title=None):
     d_to, close = _closest_on_polyline(A, T)
     i = int(np.argmax(d_to))
     ax.plot([A[i, 0], close[i, 0]], [A[i, 1], close[i, 1]], "r-", lw=1)
-    ax.plot(A[i, 0], A[i, 1], "ro", ms=4, label=f"largest distance {d_to[i]:.3f} mm")
+    ax.plot(A[i, 0], A[i, 1], "ro", ms=4, label=f"largest distance to the target {d_to[i]:.3f} mm")
     ax.plot([], [], "-", color=cmap(0), label="GDFE mid-line (colour: segment, black: hinge)")
     ax.set_aspect("equal")
     ax.set(xlabel="mm", ylabel="mm",
            title=title or f"deviation: max {dev.max:.3f} mm, RMS {dev.rms:.3f} mm")
-    ax.legend(fontsize=7, loc="best")
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
     return save_figure(fig, Path(path), dpi=110)

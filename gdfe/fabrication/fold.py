@@ -1,0 +1,371 @@
+"""Designs from FOLD crease patterns: every crease becomes a hinge, the faces rigid panels.
+
+FOLD (the origami community's JSON format, https://github.com/edemaine/fold) gives the
+crease pattern as ``vertices_coords`` (flat: z absent or 0), ``edges_vertices`` and
+``edges_assignment`` (``B`` boundary, ``M`` mountain, ``V`` valley, ``F`` flat, ``U``
+unassigned), optionally ``edges_foldAngle`` (degrees, positive for valleys) and
+``faces_vertices``. Lengths are in ``frame_unit`` (``mm``, ``cm``, ``m``, ``in``, ``pt``,
+``um``, ``nm``); a unit-less file (``unit``, the FOLD default) needs a scale in mm per unit
+(the ``gdfe:scale`` key or the ``scale`` argument).
+
+The design, on the printer's pixel grid:
+
+- the **film** is the union of the faces (without ``faces_vertices``: the loops of the
+  boundary edges);
+- every **crease** (``M`` or ``V``) is a hinge: the pixels whose centres lie within half its
+  width of the crease, across it (a band as long as the crease); where bands overlap, the
+  nearest crease wins;
+- a hinge is coated on one face only: a **valley** fold (folding towards the viewer, +z)
+  has its top face free (``CONTRACT_TOP``: coated on the bottom), a **mountain** fold the
+  bottom face free (coated on top); ``edges_gdfe:coated`` (``"top"`` or ``"bottom"``, per
+  edge, null for the default) overrides it;
+- everything else is coated on both faces (``RIGID``).
+
+:func:`fold_masks` gives the printer masks; :func:`gdfe.fabrication.fold_design` the design.
+
+The hinge width, per crease, is the first of: ``edges_gdfe:width`` [frame units]; from
+``edges_foldAngle`` by Eq. 2, ``L = |alpha| h / (1 - R)``, the width that folds a
+fully contracting hinge by that angle; ``gdfe:hinge_width`` [mm] of the file; the
+``hinge_width`` argument [mm]. ``gdfe:pixel`` [mm] gives the file's printer pixel.
+
+Errors name the key and the index of the entry (``edges_vertices[3]``); JSON that does
+not parse is reported with its line and column.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import math
+
+import numpy as np
+
+from gdfe._validation import GdfeError, check_file, check_positive, is_finite_number
+
+__all__ = ["CreasePattern", "FoldMasks", "read_fold", "fold_masks", "UNITS_MM", "ASSIGNMENTS"]
+
+log = logging.getLogger(__name__)
+
+#: Millimetres per FOLD ``frame_unit``.
+UNITS_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4, "pt": 25.4 / 72.0, "um": 1e-3, "nm": 1e-6}
+#: The edge assignments read (FOLD 1.1; cuts ``C`` and joins ``J`` are refused).
+ASSIGNMENTS = ("B", "M", "V", "F", "U")
+
+
+@dataclasses.dataclass
+class CreasePattern:
+    """A flat crease pattern read from a FOLD file, in millimetres.
+
+    Attributes
+    ----------
+    name : str
+    vertices : (v, 2) float array [mm]
+    edges : (e, 2) int array
+    assignment : (e,) str array
+        ``B``, ``M``, ``V``, ``F`` or ``U``.
+    fold_angle : (e,) float array [rad]
+        Target fold angle (NaN where not given); positive for valleys.
+    width : (e,) float array [mm]
+        Hinge width from ``edges_gdfe:width`` (NaN where not given).
+    coated : (e,) object array
+        ``"top"``, ``"bottom"`` or None (from the assignment).
+    faces : list of (k,) int arrays, or None
+    keys : dict
+        The file's ``gdfe:`` keys (``gdfe:hinge_width`` [mm], ``gdfe:pixel`` [mm], ...).
+    """
+
+    name: str
+    vertices: np.ndarray
+    edges: np.ndarray
+    assignment: np.ndarray
+    fold_angle: np.ndarray
+    width: np.ndarray
+    coated: np.ndarray
+    faces: list | None
+    keys: dict
+
+    @property
+    def creases(self):
+        """Indices of the mountain and valley edges."""
+        return np.nonzero(np.isin(self.assignment, ("M", "V")))[0]
+
+
+@dataclasses.dataclass
+class FoldMasks:
+    """A crease pattern on the printer's pixel grid.
+
+    Attributes
+    ----------
+    top, bottom, film : (nx, ny) bool arrays
+        Passive material on each face, and where the film is (``[i, j]``: column i along x).
+    pixel : float [mm]
+    origin : (2,) float array [mm]
+        Position of the grid's corner in the crease pattern's frame.
+    hinges : list of dict
+        Per crease: ``edge``, ``assignment``, ``coated``, ``width_mm``, ``width_from``,
+        ``length_mm``, ``pixels``, ``faces`` (the two faces it joins, when the file has
+        faces) and ``angle_rad``, the fold that Eq. 2 gives a fully contracting hinge of
+        that width (positive towards +z).
+    owner : (nx, ny) int array
+        Crease of each hinge pixel (-1: none).
+    faces : dict of int -> (nx, ny) bool array
+        The panel pixels of each face (``faces_vertices`` order), hinges left out.
+    """
+
+    top: np.ndarray
+    bottom: np.ndarray
+    film: np.ndarray
+    pixel: float
+    origin: np.ndarray
+    hinges: list
+    owner: np.ndarray
+    faces: dict
+
+
+def _list(doc, key, name, n=None, required=True):
+    v = doc.get(key)
+    if v is None:
+        if required:
+            raise GdfeError(f"{name}: missing {key!r}")
+        return None
+    if not isinstance(v, list):
+        raise GdfeError(f"{name}: {key}: expected a list, got {type(v).__name__}")
+    if n is not None and len(v) != n:
+        raise GdfeError(f"{name}: {key}: expected {n} entries (one per edge), got {len(v)}")
+    return v
+
+
+def _number(v, where):
+    if not is_finite_number(v):
+        raise GdfeError(f"{where}: expected a finite number, got {v!r}")
+    return float(v)
+
+
+def read_fold(path, scale=None):
+    """Read a flat crease pattern from a FOLD file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.fold`` file.
+    scale : float [mm per unit], optional
+        For a unit-less file (overrides ``gdfe:scale``).
+
+    Returns
+    -------
+    CreasePattern
+    """
+    path = check_file("fold", path, suffixes=(".fold",), what="FOLD file")
+    name = path.name
+    try:
+        doc = json.loads(path.read_text())
+    except UnicodeDecodeError:
+        raise GdfeError(f"{name}: not a text (JSON) file") from None
+    except json.JSONDecodeError as exc:
+        raise GdfeError(f"{name}: not valid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}") from None
+    if not isinstance(doc, dict):
+        raise GdfeError(f"{name}: expected a JSON object at the top, got {type(doc).__name__}")
+    unit = doc.get("frame_unit", "unit")
+    if unit in UNITS_MM:
+        mm = UNITS_MM[unit]
+        if scale is not None:
+            log.info("%s: frame_unit %s: scale ignored", name, unit)
+    elif unit == "unit":
+        s = scale if scale is not None else doc.get("gdfe:scale")
+        if s is None:
+            raise GdfeError(f"{name}: frame_unit is 'unit' (no length unit): give the scale in mm per unit "
+                            "(the 'gdfe:scale' key, or --scale)")
+        mm = _number(s, f"{name}: gdfe:scale") if scale is None else float(check_positive("scale", scale))
+        if mm <= 0:
+            raise GdfeError(f"{name}: gdfe:scale: expected a positive number of mm per unit, got {mm:g}")
+    else:
+        raise GdfeError(f"{name}: frame_unit: expected one of unit, {', '.join(UNITS_MM)}, got {unit!r}")
+    vc = _list(doc, "vertices_coords", name)
+    V = np.zeros((len(vc), 2))
+    for k, c in enumerate(vc):
+        where = f"{name}: vertices_coords[{k}]"
+        if not isinstance(c, list) or len(c) not in (2, 3):
+            raise GdfeError(f"{where}: expected [x, y] (or [x, y, 0]), got {c!r}")
+        xyz = [_number(x, where) for x in c]
+        if len(xyz) == 3 and abs(xyz[2]) > 1e-9 * max(1.0, abs(xyz[0]), abs(xyz[1])):
+            raise GdfeError(f"{where}: expected a flat crease pattern (z = 0), got z = {xyz[2]:g}")
+        V[k] = xyz[:2]
+    ev = _list(doc, "edges_vertices", name)
+    E = np.zeros((len(ev), 2), int)
+    for k, e in enumerate(ev):
+        if (not isinstance(e, list) or len(e) != 2 or not all(isinstance(i, int) and not isinstance(i, bool)
+                                                                  for i in e)):
+            raise GdfeError(f"{name}: edges_vertices[{k}]: expected two vertex indices, got {e!r}")
+        if not all(0 <= i < len(V) for i in e) or e[0] == e[1]:
+            raise GdfeError(f"{name}: edges_vertices[{k}]: expected two different vertices in 0..{len(V) - 1}, "
+                            f"got {e!r}")
+        E[k] = e
+    ne = len(E)
+    ea = _list(doc, "edges_assignment", name, ne, required=False) or ["U"] * ne
+    for k, a in enumerate(ea):
+        if a in ("C", "J"):
+            raise GdfeError(f"{name}: edges_assignment[{k}]: {a!r} ({'cut' if a == 'C' else 'join'}) is not "
+                            f"supported; expected one of {', '.join(ASSIGNMENTS)}")
+        if a not in ASSIGNMENTS:
+            raise GdfeError(f"{name}: edges_assignment[{k}]: expected one of {', '.join(ASSIGNMENTS)}, got {a!r}")
+    fa = _list(doc, "edges_foldAngle", name, ne, required=False)
+    angle = np.full(ne, np.nan)
+    if fa is not None:
+        for k, a in enumerate(fa):
+            if a is not None:
+                angle[k] = math.radians(_number(a, f"{name}: edges_foldAngle[{k}]"))
+                if ea[k] == "M" and angle[k] > 0 or ea[k] == "V" and angle[k] < 0:
+                    raise GdfeError(f"{name}: edges_foldAngle[{k}]: a {'mountain' if ea[k] == 'M' else 'valley'} "
+                                    f"fold needs a {'negative' if ea[k] == 'M' else 'positive'} angle, got {a!r}")
+    ew = _list(doc, "edges_gdfe:width", name, ne, required=False)
+    width = np.full(ne, np.nan)
+    if ew is not None:
+        for k, w in enumerate(ew):
+            if w is not None:
+                width[k] = _number(w, f"{name}: edges_gdfe:width[{k}]") * mm
+                if width[k] <= 0:
+                    raise GdfeError(f"{name}: edges_gdfe:width[{k}]: expected a positive width, got {w!r}")
+    ec = _list(doc, "edges_gdfe:coated", name, ne, required=False)
+    coated = np.full(ne, None, dtype=object)
+    for k, a in enumerate(ea):
+        coated[k] = {"V": "bottom", "M": "top"}.get(a)
+    if ec is not None:
+        for k, c in enumerate(ec):
+            if c is not None:
+                if c not in ("top", "bottom"):
+                    raise GdfeError(f"{name}: edges_gdfe:coated[{k}]: expected 'top', 'bottom' or null, got {c!r}")
+                coated[k] = c
+    fv = _list(doc, "faces_vertices", name, required=False)
+    faces = None
+    if fv is not None:
+        faces = []
+        for k, f in enumerate(fv):
+            if (not isinstance(f, list) or len(f) < 3
+                    or not all(isinstance(i, int) and not isinstance(i, bool) and 0 <= i < len(V) for i in f)):
+                raise GdfeError(f"{name}: faces_vertices[{k}]: expected at least 3 vertex indices in "
+                                f"0..{len(V) - 1}, got {f!r}")
+            faces.append(np.array(f, int))
+    keys = {}
+    for key in ("gdfe:hinge_width", "gdfe:pixel"):
+        if key in doc:
+            v = _number(doc[key], f"{name}: {key}")
+            if v <= 0:
+                raise GdfeError(f"{name}: {key}: expected a positive length in mm, got {v:g}")
+            keys[key] = v
+    return CreasePattern(name=name, vertices=V * mm, edges=E, assignment=np.array(ea, dtype="<U1"),
+                         fold_angle=angle, width=width, coated=coated, faces=faces, keys=keys)
+
+
+def _boundary_loops(cp):
+    """Closed loops of the boundary edges (for a file without faces)."""
+    b = [tuple(e) for e, a in zip(cp.edges.tolist(), cp.assignment) if a == "B"]
+    if not b:
+        raise GdfeError(f"{cp.name}: no faces_vertices and no boundary (B) edges: the film's outline is unknown")
+    nbr = {}
+    for u, v in b:
+        nbr.setdefault(u, []).append(v)
+        nbr.setdefault(v, []).append(u)
+    odd = [u for u, n in nbr.items() if len(n) != 2]
+    if odd:
+        raise GdfeError(f"{cp.name}: the boundary edges do not form closed loops (vertex {odd[0]} has "
+                        f"{len(nbr[odd[0]])} boundary edges)")
+    loops, seen = [], set()
+    for start in nbr:
+        if start in seen:
+            continue
+        loop, prev, cur = [start], None, start
+        seen.add(start)
+        while True:
+            nxt = nbr[cur][0] if nbr[cur][0] != prev else nbr[cur][1]
+            if nxt == start:
+                break
+            loop.append(nxt)
+            seen.add(nxt)
+            prev, cur = cur, nxt
+        loops.append(np.array(loop))
+    return loops
+
+
+def fold_masks(cp, pixel, R, h, hinge_width=None):
+    """The printer masks of a crease pattern at a pixel size.
+
+    Parameters
+    ----------
+    cp : CreasePattern
+    pixel : float [mm]
+    R : float
+        Contraction ratio of the free faces (for widths from fold angles, Eq. 2).
+    h : float [mm]
+        Film thickness (likewise).
+    hinge_width : float [mm], optional
+        Width of creases that give none (nor a fold angle, nor ``gdfe:hinge_width``).
+
+    Returns
+    -------
+    FoldMasks
+    """
+    from gdfe.fabrication.raster import fill_polygons
+
+    pixel = check_positive("pixel", pixel)
+    V = cp.vertices
+    lo, hi = V.min(0), V.max(0)
+    nx, ny = (max(1, int(math.ceil((hi[k] - lo[k]) / pixel - 1e-9))) for k in (0, 1))
+    polys = [(V[f] - lo) / pixel for f in cp.faces] if cp.faces else [(V[p] - lo) / pixel for p in _boundary_loops(cp)]
+    if cp.faces:
+        film = np.zeros((ny, nx), bool)
+        for P in polys:
+            film |= fill_polygons([P], (ny, nx))
+    else:
+        film = fill_polygons(polys, (ny, nx), "evenodd")
+    film = film.T
+    if not film.any():
+        raise GdfeError(f"{cp.name}: the film covers no pixel at {pixel:g} mm")
+    xc = lo[0] + (np.arange(nx) + 0.5) * pixel
+    yc = lo[1] + (np.arange(ny) + 0.5) * pixel
+    X, Y = np.meshgrid(xc, yc, indexing="ij")
+    best = np.full((nx, ny), np.inf)
+    owner = np.full((nx, ny), -1)
+    default = cp.keys.get("gdfe:hinge_width", hinge_width)
+    hinges = []
+    unassigned = int((cp.assignment == "U").sum())
+    if unassigned:
+        log.warning("%s: %d unassigned (U) edges are left flat", cp.name, unassigned)
+    for e in cp.creases:
+        if not math.isnan(cp.width[e]):
+            w, src = float(cp.width[e]), "edges_gdfe:width"
+        elif not math.isnan(cp.fold_angle[e]):
+            w, src = float(abs(cp.fold_angle[e]) * h / (1.0 - R)), "edges_foldAngle (Eq. 2)"
+        elif default is not None:
+            w, src = float(default), "gdfe:hinge_width" if "gdfe:hinge_width" in cp.keys else "hinge_width"
+        else:
+            raise GdfeError(f"{cp.name}: edges_vertices[{e}] ({cp.assignment[e]}): no hinge width: give "
+                            "edges_gdfe:width, edges_foldAngle, gdfe:hinge_width or the hinge width")
+        a, b = V[cp.edges[e, 0]], V[cp.edges[e, 1]]
+        d = b - a
+        L = float(np.hypot(*d))
+        t = ((X - a[0]) * d[0] + (Y - a[1]) * d[1]) / L ** 2
+        dist = np.abs((X - a[0]) * d[1] - (Y - a[1]) * d[0]) / L
+        inside = (t >= 0) & (t <= 1) & (dist <= w / 2) & film
+        take = inside & (dist < best)
+        best[take] = dist[take]
+        owner[take] = e
+        ends = set(cp.edges[e].tolist())
+        adjacent = [k for k, f in enumerate(cp.faces or []) if ends <= set(f.tolist())]
+        hinges.append({"edge": int(e), "assignment": str(cp.assignment[e]), "coated": cp.coated[e],
+                       "width_mm": w, "width_from": src, "length_mm": L, "faces": adjacent,
+                       "angle_rad": (1.0 if cp.coated[e] == "bottom" else -1.0) * (1.0 - R) * w / h})
+    top = film.copy()
+    bottom = film.copy()
+    for rec in hinges:
+        mine = owner == rec["edge"]
+        rec["pixels"] = int(mine.sum())
+        if rec["pixels"] == 0:
+            raise GdfeError(f"{cp.name}: edges_vertices[{rec['edge']}]: a hinge {rec['width_mm']:g} mm wide covers "
+                            f"no pixel at {pixel:g} mm; widen it or print finer")
+        (top if rec["coated"] == "bottom" else bottom)[mine] = False  # the free face of the hinge
+    faces = {}
+    for k, P in enumerate(polys if cp.faces else []):
+        faces[k] = fill_polygons([P], (ny, nx)).T & (owner < 0) & film
+    return FoldMasks(top=top, bottom=bottom, film=film, pixel=pixel, origin=lo.copy(), hinges=hinges, owner=owner,
+                     faces=faces)

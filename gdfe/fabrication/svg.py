@@ -1,0 +1,376 @@
+"""Designs from SVG drawings: filled regions are the passive coating of each face of the film.
+
+**How faces are told apart.** With ``by="layer"`` (the default) every filled shape belongs
+to the face named by the nearest enclosing group ``<g>`` whose ``inkscape:label`` (an
+Inkscape layer's name) or ``id`` is, in any case, one of
+
+``top``
+    passive material printed on the top face (the face seen in the drawing);
+``bottom``
+    on the bottom face;
+``both``
+    on both faces (rigid panels);
+``film``
+    the outline of the film itself (default: the whole page).
+
+A filled shape outside such a group is an error (hide it, ``display:none``, or delete it).
+With ``by="colour"`` the fill colour says it instead: :data:`FACE_COLOURS` (red top, blue
+bottom, black both, green film), or a mapping given by the caller. Shapes without a fill
+(strokes, guides) are left out. Fills use the shape's ``fill-rule`` (``nonzero`` or
+``evenodd``); transforms, ``<use>`` clones, groups and units are resolved by svgelements.
+
+**Geometry.** Lengths come out in millimetres from the page size (``width``/``height`` with
+units; user units without them are CSS pixels, 96 per inch). The drawing's y axis points
+down; the design's points up, so the page's bottom edge is y = 0. Curves are flattened to
+chords no longer than a tenth of a pixel, and each region is rasterised at the printer's
+pixel: a pixel is coated when its centre is inside (:func:`gdfe.fabrication.raster.fill_polygons`).
+The grid is cropped to the film's bounding box.
+
+**Errors.** XML that is not well formed is reported with its line and column; a ``<path>``
+whose ``d`` does not parse, text not converted to paths, and shapes outside any face are
+reported naming the element (tag, id, line).
+
+svgelements is imported by the functions that read SVG.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import logging
+import math
+import re
+import xml.etree.ElementTree as ET
+import xml.parsers.expat
+
+import numpy as np
+
+from gdfe._validation import GdfeError, check_choice, check_file, check_positive
+
+__all__ = ["SvgMasks", "svg_masks", "svg_polyline", "FACES", "FACE_COLOURS", "MM_PER_PX"]
+
+log = logging.getLogger(__name__)
+
+#: The names of the face groups (``id`` or ``inkscape:label``).
+FACES = ("top", "bottom", "both", "film")
+#: Fill colour of each face with ``by="colour"``.
+FACE_COLOURS = {"top": "#ff0000", "bottom": "#0000ff", "both": "#000000", "film": "#00ff00"}
+#: Millimetres per CSS pixel (SVG user unit without a page size): 25.4 / 96.
+MM_PER_PX = 25.4 / 96.0
+
+_INKSCAPE_LABEL = "{http://www.inkscape.org/namespaces/inkscape}label"
+_SHAPES = ("path", "rect", "circle", "ellipse", "line", "polyline", "polygon")
+_ARITY = {"m": 2, "l": 2, "t": 2, "h": 1, "v": 1, "c": 6, "s": 4, "q": 4, "a": 7, "z": 0}
+_TOKEN = re.compile(r"([MmZzLlHhVvCcSsQqTtAa])|([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)|([\s,]+)")
+
+
+@dataclasses.dataclass
+class SvgMasks:
+    """The faces of an SVG drawing on the printer's pixel grid.
+
+    Attributes
+    ----------
+    top, bottom, film : (nx, ny) bool arrays
+        Passive material on each face (``both`` counted on each), and where the film is;
+        ``[i, j]``: column i along x, row j along y.
+    pixel : float [mm]
+    origin : (2,) float array [mm]
+        Position of the grid's corner (column 0, row 0) on the page, y up from the page's bottom.
+    shapes : dict
+        Number of filled shapes read per face.
+    """
+
+    top: np.ndarray
+    bottom: np.ndarray
+    film: np.ndarray
+    pixel: float
+    origin: np.ndarray
+    shapes: dict
+
+
+def _describe(el, line):
+    ident = el.get("id")
+    return f"element <{el.tag.rsplit('}', 1)[-1]}{f' id={ident!r}' if ident else ''}> (line {line})"
+
+
+def _read_tree(path):
+    """The SVG's element tree and the line of every element; errors name the line."""
+    data = path.read_bytes()
+    lines = []
+    parser = xml.parsers.expat.ParserCreate()
+    parser.StartElementHandler = lambda *_: lines.append(parser.CurrentLineNumber)
+    try:
+        parser.Parse(data, True)
+        root = ET.fromstring(data)
+    except (xml.parsers.expat.ExpatError, ET.ParseError) as exc:
+        line, col = getattr(exc, "position", (getattr(exc, "lineno", "?"), getattr(exc, "offset", "?")))
+        raise GdfeError(f"{path.name}: not well-formed XML at line {line}, column {col}: "
+                        f"{xml.parsers.expat.ErrorString(exc.code) if hasattr(exc, 'code') else exc}") from None
+    elements = list(root.iter())
+    if root.tag.rsplit("}", 1)[-1] != "svg":
+        raise GdfeError(f"{path.name}: expected an <svg> document, got <{root.tag.rsplit('}', 1)[-1]}> at line 1")
+    return root, dict(zip(map(id, elements), lines))
+
+
+def _check_path_data(d, where):
+    """Raise naming ``where`` if a path's ``d`` is not SVG path data."""
+    pos, cmd, count, first = 0, None, 0, True
+    d = d.strip()
+
+    def close_command():
+        if cmd is None:
+            return
+        n = _ARITY[cmd.lower()]
+        if cmd.lower() == "a":  # arc flags may be written without separators: only ask for some numbers
+            ok = count > 0
+        else:
+            ok = count == 0 if n == 0 else (count > 0 and count % n == 0)
+        if not ok:
+            raise GdfeError(f"{where}: path data: command {cmd!r} takes "
+                            f"{'no numbers' if n == 0 else f'numbers in groups of {n}'}, got {count}")
+
+    while pos < len(d):
+        m = _TOKEN.match(d, pos)
+        if not m:
+            raise GdfeError(f"{where}: path data: unexpected {d[pos:pos + 10]!r} at character {pos + 1}")
+        if m.group(1):
+            close_command()
+            cmd, count = m.group(1), 0
+            if first and cmd not in "Mm":
+                raise GdfeError(f"{where}: path data: expected it to start with M or m, got {cmd!r}")
+            first = False
+        elif m.group(2):
+            if cmd is None:
+                raise GdfeError(f"{where}: path data: expected it to start with M or m, got a number")
+            count += 1
+        pos = m.end()
+    close_command()
+
+
+def _face_of(el):
+    for key in (_INKSCAPE_LABEL, "id"):
+        v = (el.get(key) or "").strip().lower()
+        if v in FACES:
+            return v
+    return None
+
+
+def _prepare(path, by):
+    """Parse, check and mark the drawing; returns svgelements' parsed document and the element lines."""
+    import svgelements as se
+
+    root, lines = _read_tree(path)
+
+    def walk(el, face):
+        tag = el.tag.rsplit("}", 1)[-1]
+        where = _describe(el, lines.get(id(el), "?"))
+        if tag == "g" and by == "layer":
+            face = _face_of(el) or face
+        if tag == "path":
+            _check_path_data(el.get("d", ""), f"{path.name}: {where}")
+        if tag in ("text", "tspan", "flowRoot") and (el.text or "").strip():
+            raise GdfeError(f"{path.name}: {where}: text is not read; convert it to paths first")
+        el.set("gdfe-where", where)
+        if face is not None:
+            el.set("gdfe-face", face)
+        for child in el:
+            walk(child, face)
+
+    walk(root, None)
+    text = ET.tostring(root, encoding="unicode")
+    try:
+        svg = se.SVG.parse(io.StringIO(text), ppi=96.0)
+    except Exception as exc:  # svgelements reports malformed attribute values with its own exceptions
+        raise GdfeError(f"{path.name}: not a readable SVG drawing ({type(exc).__name__}: {exc})") from None
+    return svg, root
+
+
+def _subpaths(shape, step_px):
+    """The closed polygons [px, y down] of a shape's subpaths, curves cut into chords <= step_px."""
+    import svgelements as se
+
+    out = []
+    for sub in se.Path(shape).as_subpaths():
+        pts = []
+        for seg in sub:
+            if isinstance(seg, se.Move):
+                pts.append((seg.end.x, seg.end.y))
+            elif isinstance(seg, (se.Line, se.Close)):
+                if seg.end is not None:
+                    pts.append((seg.end.x, seg.end.y))
+            else:
+                n = max(2, int(math.ceil(seg.length(error=1e-4) / step_px)) + 1)
+                pts.extend(map(tuple, seg.npoint(np.linspace(0.0, 1.0, n))[1:]))
+        if len(pts) >= 3:
+            out.append(np.array(pts, float))
+    return out
+
+
+_LENGTH = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(mm|cm|in|px|pt|pc|q)?\s*$", re.I)
+_UNIT_MM = {"mm": 1.0, "cm": 10.0, "in": 25.4, "px": 25.4 / 96.0, "pt": 25.4 / 72.0, "pc": 25.4 / 6.0,
+            "q": 0.25, None: 25.4 / 96.0}
+
+
+def _page(root, svg, name):
+    """Page width and height [mm] from the root's ``width``/``height`` (or ``viewBox``), and the
+    millimetres per unit of svgelements' parsed coordinates (which are scaled to the page)."""
+    sizes = []
+    box = (root.get("viewBox") or "").replace(",", " ").split()
+    for k, key in enumerate(("width", "height")):
+        text = root.get(key)
+        m = _LENGTH.match(text) if text else None
+        if m:
+            unit = m.group(2).lower() if m.group(2) else None
+            sizes.append(float(m.group(1)) * _UNIT_MM[unit])
+        elif len(box) == 4:
+            sizes.append(float(box[2 + k]) * _UNIT_MM[None])
+        else:
+            raise GdfeError(f"{name}: expected a page size (width and height, or a viewBox), got "
+                            f"{key}={text!r}")
+    W, H = sizes
+    if not (W > 0 and H > 0 and svg.width and svg.height):
+        raise GdfeError(f"{name}: expected a page of positive size, got {W:g} x {H:g} mm")
+    return W, H, W / float(svg.width)
+
+
+def svg_masks(path, pixel, by="layer", colours=None):
+    """Rasterise an SVG drawing into the masks of the two faces and of the film.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.svg`` file.
+    pixel : float [mm]
+        Printer pixel size.
+    by : {"layer", "colour"}
+        How faces are told apart (module docstring).
+    colours : dict of str -> str, optional
+        Face -> fill colour (``#rrggbb``) for ``by="colour"`` (default :data:`FACE_COLOURS`).
+
+    Returns
+    -------
+    SvgMasks
+    """
+    import svgelements as se
+
+    path = check_file("svg", path, suffixes=(".svg",), what="SVG drawing")
+    pixel = check_positive("pixel", pixel)
+    check_choice("by", by, ("layer", "colour"))
+    colour_face = None
+    if by == "colour":
+        table = dict(FACE_COLOURS if colours is None else colours)
+        for face in table:
+            check_choice("colours", face, FACES)
+        colour_face = {str(se.Color(v).hex)[:7].lower(): f for f, v in table.items()}
+    svg, root = _prepare(path, by)
+    W, H, mm = _page(root, svg, path.name)
+    step = pixel / mm / 10.0
+    polys = {f: [] for f in FACES}  # face -> list of (polygons [mm, y down], rule)
+    counts = dict.fromkeys(FACES, 0)
+    for el in svg.elements():
+        if isinstance(el, se.Text):
+            continue  # non-empty text was refused in _prepare
+        if not isinstance(el, se.Shape):
+            continue
+        fill = el.fill
+        where = el.values.get("gdfe-where", type(el).__name__)
+        if fill is None or fill.value is None or fill.alpha == 0:
+            continue
+        if by == "layer":
+            face = el.values.get("gdfe-face")
+            if face is None:
+                raise GdfeError(f"{path.name}: {where}: a filled shape outside any group named "
+                                f"{', '.join(FACES)} (by id or Inkscape layer name); hide or delete it, "
+                                "or tell faces apart by colour")
+        else:
+            key = str(fill.hex)[:7].lower()
+            face = colour_face.get(key)
+            if face is None:
+                raise GdfeError(f"{path.name}: {where}: fill colour {key} is none of the face colours "
+                                + ", ".join(f"{f} {c}" for c, f in colour_face.items()))
+        rule = str(el.values.get("fill-rule", "nonzero")).strip().lower()
+        rule = rule if rule in ("nonzero", "evenodd") else "nonzero"
+        sub = [P * mm for P in _subpaths(el, step)]
+        if sub:
+            polys[face].append((sub, rule))
+            counts[face] += 1
+    from gdfe.fabrication.raster import fill_polygons
+
+    rows, cols = int(math.ceil(H / pixel - 1e-6)), int(math.ceil(W / pixel - 1e-6))  # page sizes carry round-off
+
+    def raster(face):
+        img = np.zeros((rows, cols), bool)
+        for sub, rule in polys[face]:
+            img |= fill_polygons([P / pixel for P in sub], (rows, cols), rule)
+        return img[::-1].T  # image rows run down from the page's top; the grid's j runs up
+
+    film = raster("film") if polys["film"] else np.ones((cols, rows), bool)
+    both = raster("both")
+    top, bottom = raster("top") | both, raster("bottom") | both
+    if not film.any():
+        raise GdfeError(f"{path.name}: the film group covers no pixel at {pixel:g} mm")
+    if not (top | bottom).any():
+        raise GdfeError(f"{path.name}: no filled shape in a top, bottom or both group covers a pixel at "
+                        f"{pixel:g} mm: nothing is coated")
+    ii, jj = np.nonzero(film)
+    sl = (slice(ii.min(), ii.max() + 1), slice(jj.min(), jj.max() + 1))
+    outside = (top | bottom) & ~film
+    if outside.any():
+        log.info("%s: %d coated pixels lie outside the film and are left out", path.name, int(outside.sum()))
+    return SvgMasks(top=(top & film)[sl], bottom=(bottom & film)[sl], film=film[sl], pixel=pixel,
+                    origin=np.array([ii.min() * pixel, jj.min() * pixel]), shapes=counts)
+
+
+def svg_polyline(path, element_id=None, spacing=0.2):
+    """The vertices [mm, y up] of one stroke of an SVG drawing: a sketch for the 1-D design.
+
+    Parameters
+    ----------
+    path : str or Path
+    element_id : str, optional
+        ``id`` of the ``<path>`` (or line, polyline, ...) to read; default the drawing's only one.
+    spacing : float [mm]
+        Curved segments are sampled at about this spacing; straight ones keep their two
+        end points (a polyline's own vertices are the sketch's).
+
+    Returns
+    -------
+    (n, 2) float array [mm]
+    """
+    import svgelements as se
+
+    path = check_file("sketch", path, suffixes=(".svg",), what="SVG sketch")
+    spacing = check_positive("spacing", spacing)
+    svg, root = _prepare(path, "layer")
+    mm = _page(root, svg, path.name)[2]
+    shapes = [e for e in svg.elements() if isinstance(e, se.Shape) and len(se.Path(e)) > 0]
+    if element_id is not None:
+        shapes = [e for e in shapes if e.id == element_id]
+        if not shapes:
+            raise GdfeError(f"{path.name}: no path with id {element_id!r}")
+    if len(shapes) != 1:
+        ids = [e.values.get("gdfe-where") for e in shapes]
+        raise GdfeError(f"{path.name}: expected one stroke to read (or give its id), got {len(shapes)}: "
+                        + "; ".join(map(str, ids)))
+    shape = shapes[0]
+    where = shape.values.get("gdfe-where")
+    subs = list(se.Path(shape).as_subpaths())
+    if len(subs) != 1:
+        raise GdfeError(f"{path.name}: {where}: expected one stroke, got {len(subs)} subpaths (a strip folds "
+                        "into one stroke)")
+    pts = []
+    step = spacing / mm
+    for seg in subs[0]:
+        if isinstance(seg, se.Move):
+            pts.append((seg.end.x, seg.end.y))
+        elif isinstance(seg, (se.Line, se.Close)):
+            if seg.end is not None and (seg.end.x, seg.end.y) != pts[-1]:
+                pts.append((seg.end.x, seg.end.y))
+        else:
+            n = max(2, int(math.ceil(seg.length(error=1e-4) / step)) + 1)
+            pts.extend(map(tuple, seg.npoint(np.linspace(0.0, 1.0, n))[1:]))
+    P = np.array(pts, float) * mm
+    if len(P) < 3:
+        raise GdfeError(f"{path.name}: {where}: expected a stroke of at least 3 points, got {len(P)}")
+    P[:, 1] = -P[:, 1]  # y up
+    return P
