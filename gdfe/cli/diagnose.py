@@ -16,8 +16,18 @@ def register(sub):
     p = sub.add_parser(
         "diagnose", help="where folding tests and the calibrated GDFE hinge part ways, and why",
         description="Fit the calibrated GDFE hinge (Eq. 1-3) to folding tests, locate its residuals, "
-                    "and rank a catalogue of physical effects by held-out error.")
+                    "rank a catalogue of physical effects by held-out error, and give a verdict against "
+                    "the noise: no_gap, explained, partly_explained or not_explained. Numeric extra columns "
+                    "(oven temperature, time) are process columns of partial_activation; text columns with "
+                    "repeated labels are groups (leave-one-group-out, a batch effect); a sigma_rad column is "
+                    "the noise of each test. Exit status 3 when the chosen model's fit did not converge.")
     p.add_argument("data", type=Path, help="CSV with columns L_mm, d_mm, h_mm, alpha_rad (more allowed)")
+    p.add_argument("--sigma", type=float, default=None, metavar="S",
+                   help="noise of the measured angles [rad] (default: a sigma_rad column, else replicate "
+                        "rows, else unknown)")
+    p.add_argument("--process", default=None, metavar="COL[,COL]",
+                   help="numeric columns partial_activation may use (default: every numeric column that "
+                        "varies; '' for none)")
     p.add_argument("--json", dest="json_out", metavar="OUT.json",
                    help="write the diagnosis as JSON here ('-': print it instead of the summary)")
     p.add_argument("--report", type=Path, metavar="DIR", help="write plots and summary.md here")
@@ -31,8 +41,10 @@ def register(sub):
     p = sub.add_parser(
         "diagnose-shape", help="where a scanned part deviates from the simulation of its design",
         description="Align a measured shape (PLY, VTU, OBJ or CSV of x,y,z) to the simulated design, "
-                    "report the deviation per element and region, and fit a per-region correction "
-                    "of the contraction ratio.")
+                    "check that it is the part, report the deviation per element and region, and fit a "
+                    "per-region correction of the contraction ratio. Exit status 4 when the scan does not "
+                    "match the design (another part, degenerate or random points, a scale error), 3 when a "
+                    "simulation did not converge.")
     p.add_argument("design", type=Path, help="design file (.toml)")
     p.add_argument("measured", type=Path, help="point cloud or mesh: .ply, .vtu, .obj or .csv (x,y,z)")
     p.add_argument("--json", dest="json_out", metavar="OUT.json",
@@ -47,7 +59,8 @@ def register(sub):
 def _cmd_diagnose(args):
     from gdfe.diagnosis.angles import diagnose
 
-    diag = diagnose(args.data, group=args.group, pairs=not args.no_pairs,
+    process = None if args.process is None else [c.strip() for c in args.process.split(",") if c.strip()]
+    diag = diagnose(args.data, group=args.group, sigma=args.sigma, process=process, pairs=not args.no_pairs,
                     check=None if args.check == "none" else args.check)
     obj = diag.as_dict()
     text = diag.text()
@@ -61,7 +74,7 @@ def _cmd_diagnose(args):
         write_json(args.json_out, obj)
         text += f"\nwrote {args.json_out}"
     emit(obj, args.json_out == "-", text)
-    return 0
+    return 0 if diag.best.success else 3
 
 
 def _cmd_diagnose_shape(args):
@@ -79,4 +92,6 @@ def _cmd_diagnose_shape(args):
         write_json(args.json_out, obj)
         text += f"\nwrote {args.json_out}"
     emit(obj, args.json_out == "-", text)
+    if not res.matches:
+        return 4
     return 0 if res.converged else 3

@@ -1,41 +1,187 @@
-"""Diagnosis of fold-angle data: where the calibrated GDFE hinge misses, which effect explains it.
+"""Diagnosis of fold-angle data: is there a gap to the calibrated GDFE hinge, and what explains it?
 
-:func:`diagnose` takes folding tests (a table like the paper's Table 1) and
+:func:`diagnose` takes folding tests (a table like the paper's Table 1, with any further
+columns) and
 
-1. fits the **baseline**, the paper's deformation principle refitted to the data: the GDFE
+1. reads its **columns**: ``sigma_rad`` (the noise of each test), numeric process columns
+   (oven temperature, time, exposure: candidates of ``partial_activation``) and text columns
+   with repeated labels (batch, operator, printer: groups, for leave-one-group-out, a
+   ``batch`` effect and the residual structure by group);
+2. finds the **noise** (:mod:`gdfe.diagnosis.verdict`): given, a ``sigma_rad`` column,
+   replicate rows, or unknown;
+3. fits the **baseline**, the paper's deformation principle refitted to the data: the GDFE
    hinge with the contraction ratio of Eq. 3, whose converged fold is Eq. 2's
    ``(1 - R) L / h``, i.e. Eq. 1, ``alpha = K sqrt(h / d**3) L``, with ``K`` by least
    squares (the closed form is checked against GDFE solves of the same tests);
-2. says **where** its residuals lie (:mod:`gdfe.diagnosis.where`);
-3. fits every **effect** of the catalogue (:mod:`gdfe.diagnosis.effects`) and every pair,
-   and measures each on tests the fit did not see: leave-one-out, and leave-one-group-out
-   when the tests carry a group column;
-4. ranks them by held-out error, reports how much of the baseline's held-out error each
-   removes (``shrink``) and its AICc, and names the **best**, climbing from the baseline one
-   effect at a time while the held-out error drops significantly
-   (:func:`gdfe.diagnosis.fit.select`).
+4. fits every **effect** of the catalogue (:mod:`gdfe.diagnosis.effects`) and every pair, and
+   measures each on tests the fit did not see: leave-one-out (k-fold for many tests), and
+   leave-one-group-out when the tests carry a group column, which then ranks them; a model
+   whose parameters the data cannot identify, or whose predictions equal a simpler model's,
+   is never chosen (:mod:`gdfe.diagnosis.fit`);
+5. names the **best**, climbing from the baseline one effect at a time while the held-out
+   error drops significantly (:func:`gdfe.diagnosis.fit.select`), then tries a ``batch``
+   effect on each group column on top of it (judged on leave-one-out: a group's own
+   contraction cannot be predicted for a group left out) and drops any effect the batch
+   makes unnecessary;
+6. says **where** the residuals of the baseline and of the best lie, and whether any
+   structure is left (:mod:`gdfe.diagnosis.where`);
+7. gives the **verdict** (``no_gap``, ``explained``, ``partly_explained``,
+   ``not_explained``; :func:`gdfe.diagnosis.verdict.decide`). With a known noise and the
+   baseline within it, the best is the baseline: there is nothing to explain.
 
-Angles in radians, lengths in mm.
+The cost grows linearly with the tests (k-fold cross-validation above
+:data:`gdfe.diagnosis.fit.LOO_EXACT` tests, multi-start iterations on a subset above
+:data:`gdfe.diagnosis.fit.START_ROWS`); measured timings are in the blind-diagnosis study's
+output. Angles in radians, lengths in mm.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import logging
+import math
 
 import numpy as np
 
-from gdfe._validation import GdfeError
+from gdfe._validation import GdfeError, GdfeTypeError, check_choice, is_finite_number
 from gdfe.calibration import FoldingTests, load_folding_tests
 from gdfe.diagnosis.effects import EFFECTS, Model, catalogue
-from gdfe.diagnosis.fit import STEP_SE, EffectFit, evaluate, select
-from gdfe.diagnosis.where import residual_analysis
+from gdfe.diagnosis.fit import STEP_SE, EffectFit, compare, evaluate, mark_equal, select
+from gdfe.diagnosis.verdict import LEVEL, MEANINGFUL, Noise, Verdict, decide, gap, lack_of_fit, noise_of
+from gdfe.diagnosis.where import group_analysis, residual_analysis, structure
 
-__all__ = ["Diagnosis", "diagnose", "numeric_columns"]
+__all__ = ["Diagnosis", "Columns", "diagnose", "numeric_columns", "read_columns", "SIGMA_COLUMN",
+           "CHECK_TESTS"]
 
 log = logging.getLogger(__name__)
 
 BASELINE_MODEL = "gdfe_hinge_eq3"
+#: The column of per-test noise [rad].
+SIGMA_COLUMN = "sigma_rad"
+#: Most tests simulated by the GDFE check of the closed forms (evenly spread in predicted angle).
+CHECK_TESTS = 24
+
+
+@dataclasses.dataclass
+class Columns:
+    """What the diagnosis makes of a table's extra columns.
+
+    Attributes
+    ----------
+    process : dict of str -> (n,) float array
+        Numeric columns that vary: the process columns of ``partial_activation``.
+    groups : dict of str -> (n,) str array
+        Text columns whose labels repeat (at least two groups, at most half as many groups as
+        tests): the group columns (``batch`` effect, residual structure by group).
+    logo : str or None
+        The group column held out group by group.
+    sigma : (n,) float array or None [rad]
+        The ``sigma_rad`` column.
+    ignored : dict of str -> str
+        Columns left out, and why.
+    """
+
+    process: dict
+    groups: dict
+    logo: str | None
+    sigma: np.ndarray | None
+    ignored: dict
+
+    def as_dict(self):
+        return {"process": list(self.process), "groups": {k: sorted(set(v.tolist())) for k, v in self.groups.items()},
+                "leave_one_group_out": self.logo, "sigma_column": self.sigma is not None,
+                "ignored": self.ignored}
+
+
+def _as_float(values):
+    try:
+        x = np.array([float(s) for s in values])
+    except (TypeError, ValueError):
+        return None
+    return x if np.all(np.isfinite(x)) else None
+
+
+def numeric_columns(tests):
+    """Extra columns of ``tests`` whose every value is a finite number, as float arrays."""
+    out = {}
+    for k, v in tests.extra.items():
+        x = _as_float(v)
+        if x is not None:
+            out[k] = x
+    return out
+
+
+def read_columns(tests, group=None, process=None):
+    """Sort the extra columns of ``tests`` into noise, process and group columns.
+
+    Parameters
+    ----------
+    tests : FoldingTests
+    group : str, optional
+        The column to hold out group by group (its values are labels even when numeric).
+        Default: ``group`` when there is such a column, else the first group column.
+    process : sequence of str, optional
+        The numeric columns ``partial_activation`` may use (default: every numeric column
+        that varies; ``()`` for none).
+
+    Returns
+    -------
+    Columns
+    """
+    n = len(tests)
+    extra = tests.extra
+    if group is not None:
+        if not isinstance(group, str):
+            raise GdfeTypeError(f"group: expected a column name, got {group!r}")
+        if group not in extra:
+            raise GdfeError(f"group: no column {group!r} in the tests; columns besides L_mm, d_mm, "
+                            f"h_mm, alpha_rad: {', '.join(extra) or 'none'}")
+    sigma = None
+    if SIGMA_COLUMN in extra:
+        sigma = _as_float(extra[SIGMA_COLUMN])
+        bad = [i for i, s in enumerate(extra[SIGMA_COLUMN])
+               if sigma is None or not sigma[i] > 0]
+        if bad:
+            i = bad[0]
+            raise GdfeError(f"row {i + 2}, column {SIGMA_COLUMN}: expected a positive noise in rad, "
+                            f"got {str(extra[SIGMA_COLUMN][i])!r}")
+    numeric, groups, ignored = {}, {}, {}
+    for k, v in extra.items():
+        if k == SIGMA_COLUMN:
+            continue
+        x = _as_float(v)
+        if x is not None and k != group:
+            if np.ptp(x) > 0:
+                numeric[k] = x
+            else:
+                ignored[k] = "numeric, but the same in every test"
+            continue
+        labels = np.asarray(v).astype(str)
+        m = np.unique(labels).size
+        if k == group and m < 2:
+            log.info("group column %r has a single value: no leave-one-group-out", group)
+            ignored[k] = "a single group"
+        elif k == group or 2 <= m <= n // 2:
+            groups[k] = labels
+        else:
+            ignored[k] = ("a single group" if m < 2 else
+                          f"text with {m} different values in {n} tests: not groups")
+    if process is None:
+        proc = numeric
+    else:
+        if isinstance(process, str):
+            process = [process]
+        proc = {}
+        for k in process:
+            if k not in numeric:
+                raise GdfeError(f"process: expected a numeric column that varies ({', '.join(numeric) or 'none'}), "
+                                f"got {k!r}")
+            proc[k] = numeric[k]
+        for k in numeric:
+            if k not in proc:
+                ignored[k] = "numeric, not among the process columns asked for"
+    logo = group if group in groups else ("group" if "group" in groups else next(iter(groups), None))
+    return Columns(process=proc, groups=groups, logo=logo, sigma=sigma, ignored=ignored)
 
 
 @dataclasses.dataclass
@@ -46,22 +192,40 @@ class Diagnosis:
     ----------
     tests : FoldingTests
     groups : (n,) array or None
-        Group label of each test.
+        Group label of each test in the leave-one-group-out column.
     held_out : str
-        ``"loo"`` or ``"logo"``: the held-out error the models are ranked by.
+        ``"loo"`` or ``"logo"``: the held-out error the group-free models are ranked by.
     baseline : EffectFit
     fits : list of EffectFit
-        Every effect model (single effects and pairs), best held-out error first.
+        Every effect model fitted (single effects, pairs, batch steps), best held-out error first.
     best : EffectFit
-        The chosen model (may be the baseline: no effect earns its parameters).
+        The chosen model (the baseline when no effect earns its parameters, or when the
+        baseline is within a known noise). Its ``model.effects``, ``model.param_names``,
+        ``params``, ``se`` and ``ci95`` (or ``param_dict()``, ``se_dict()``, ``ci_dict()``,
+        ``parameters()``) say what was found; :data:`gdfe.diagnosis.EFFECTS` says what each
+        parameter means.
+    selected : EffectFit
+        The model the held-out errors alone choose (``best`` unless the baseline is within
+        the noise).
     candidates : list of str
         Models within one standard error of the chosen model's held-out error, or below it.
     where, where_best : list of dict
-        Residual analysis of the baseline and of the best model.
+        Residual analysis of the baseline and of the best model (numeric inputs, then groups).
     regime, regime_best : str
         Where the error concentrates, in words.
     inputs : dict of str -> (n,) float array
-        The inputs the residuals were analysed against.
+        The numeric inputs the residuals were analysed against.
+    columns : Columns
+    noise : Noise
+    verdict : Verdict
+    lack_of_fit : dict
+        :func:`gdfe.diagnosis.verdict.lack_of_fit` of ``baseline`` and ``best``.
+    structure, structure_best : list of dict
+        Structure in the residuals of the baseline and of the best
+        (:func:`gdfe.diagnosis.where.structure`).
+    excluded : list of dict
+        Models never chosen, and why (parameters not identifiable, equal to a simpler model).
+    warnings : list of str
     check : dict or None
         Closed form against GDFE solves (:func:`gdfe.diagnosis.forward.gdfe_check`) for
         the baseline and the best model.
@@ -79,28 +243,53 @@ class Diagnosis:
     where_best: list
     regime_best: str
     inputs: dict
+    columns: Columns = None
+    noise: Noise = None
+    verdict: Verdict = None
+    selected: EffectFit = None
+    lack_of_fit: dict = None
+    structure: list = dataclasses.field(default_factory=list)
+    structure_best: list = dataclasses.field(default_factory=list)
+    excluded: list = dataclasses.field(default_factory=list)
+    warnings: list = dataclasses.field(default_factory=list)
     check: dict | None = None
 
-    def held_out_rmse(self, fit):
-        return fit.held_out_rmse(self.held_out)
+    def _kind(self, fit, kind=None):
+        kind = kind or self.held_out
+        return "loo" if fit.held_out_rmse(kind) is None else kind
+
+    def held_out_rmse(self, fit, kind=None):
+        """Held-out RMSE [rad] of ``fit`` (LOO for a batch effect, which has no LOGO)."""
+        return fit.held_out_rmse(self._kind(fit, kind))
 
     def shrink(self, fit, kind=None):
         """Fraction of the baseline's held-out RMSE that ``fit`` removes."""
-        kind = kind or self.held_out
+        kind = self._kind(fit, kind)
         b = self.baseline.held_out_rmse(kind)
         return float(1.0 - fit.held_out_rmse(kind) / b) if b else 0.0
 
     def as_dict(self) -> dict:
-        """The JSON layout of ``gdfe diagnose --json``."""
+        """The JSON layout of ``gdfe diagnose --json``: the verdict and the noise first."""
         t = self.tests
         logo = self.held_out == "logo"
 
         def entry(f):
             e = {"name": f.name, "effects": list(f.model.effects), "params": f.param_dict(),
-                 "n_params": f.model.n_params, "rmse": f.rmse, "loo_rmse": f.loo_rmse,
-                 "shrink": self.shrink(f, "loo"), "aic": f.aicc, "at_bound": f.at_bound}
+                 "se": {k: _num(v) for k, v in f.se_dict().items()},
+                 "ci95": {k: [_num(a), _num(b)] for k, (a, b) in f.ci_dict().items()},
+                 "parameters": f.parameters(),
+                 "n_params": f.model.n_params, "rmse": f.rmse, "loo_rmse": f.loo_rmse, "cv": f.cv,
+                 "shrink": self.shrink(f, "loo"), "aic": f.aicc, "at_bound": f.at_bound,
+                 "identifiable": f.identifiable, "unidentified": f.unidentified,
+                 "condition": _num(f.condition), "equals": f.equals, "converged": f.success}
+            if f.model.process:
+                e["process_column"] = f.model.process
+            if f.model.group:
+                e["group_column"] = f.model.group
+                e["group_labels"] = list(f.model.labels)
             if logo:
-                e.update(logo_rmse=f.logo_rmse, shrink_logo=self.shrink(f, "logo"))
+                e.update(logo_rmse=f.logo_rmse,
+                         shrink_logo=self.shrink(f, "logo") if f.logo_rmse is not None else None)
             return e
 
         effects = []
@@ -112,7 +301,8 @@ class Diagnosis:
         base = {"model": BASELINE_MODEL,
                 "description": "GDFE hinge with the contraction ratio of Eq. 3 refitted to the data; "
                                "its converged fold is Eq. 1, alpha = K sqrt(h/d^3) L",
-                "params": b.param_dict(), "rmse": b.rmse, "loo_rmse": b.loo_rmse, "aic": b.aicc,
+                "params": b.param_dict(), "se": {k: _num(v) for k, v in b.se_dict().items()},
+                "rmse": b.rmse, "loo_rmse": b.loo_rmse, "cv": b.cv, "aic": b.aicc,
                 "r2": _r2(t.alpha, b.predicted)}
         if logo:
             base["logo_rmse"] = b.logo_rmse
@@ -130,74 +320,102 @@ class Diagnosis:
                 row.setdefault(k, str(v[i]))
             residuals.append(row)
         out = {
+            "verdict": self.verdict.verdict,
+            "verdict_text": self.verdict.text,
+            "noise": self.noise.as_dict(),
             "n_tests": len(t),
-            "held_out": "leave-one-group-out" if logo else "leave-one-out",
+            "held_out": "leave-one-group-out" if logo else b.cv,
+            "columns": self.columns.as_dict(),
             "baseline": base,
+            "lack_of_fit": self.lack_of_fit,
+            "gap_removed": self.verdict.removed,
+            "structure": {"baseline": self.structure, "best": self.structure_best},
             "where": self.where,
             "regime": self.regime,
             "residuals": residuals,
             "effects": effects,
             "best": self.best.name,
+            "selected": self.selected.name,
             "best_detail": {**entry(self.best), "where": self.where_best, "regime": self.regime_best},
             "selection": ("effects: the best first, then the others by rank, the order of their "
-                          + ("leave-one-group-out" if logo else "leave-one-out")
+                          + ("leave-one-group-out" if logo else b.cv)
                           + " RMSE; best: climbing from the baseline, the best single effect is named if "
                           f"its held-out mean squared error is lower by more than {STEP_SE[0]:g} standard "
                           "error(s) of the paired per-test difference, the best pair if lower than that "
-                          f"by more than {STEP_SE[1]:g}"),
+                          f"by more than {STEP_SE[1]:g}; models whose parameters the data cannot identify or "
+                          "whose predictions equal a simpler model's are never chosen; a batch effect is then "
+                          "tried on the chosen model on leave-one-out error; with a known noise and the "
+                          "baseline within it, the best is the baseline"),
+            "verdict_rules": {"level": LEVEL, "meaningful": MEANINGFUL},
             "candidates": self.candidates,
-            "catalogue": {e.name: {"stage": e.stage, "params": list(e.params), "units": list(e.units),
-                                   "meaning": e.meaning} for e in EFFECTS.values()},
+            "excluded": self.excluded,
+            "warnings": self.warnings,
+            "catalogue": {e.name: e.as_dict() for e in EFFECTS.values()},
         }
         if self.check is not None:
             out["gdfe_check"] = self.check
         return out
 
     def text(self) -> str:
-        """A human-readable summary."""
+        """A human-readable summary, the verdict first."""
         b = self.baseline
-        ho = "LOGO" if self.held_out == "logo" else "LOO"
-        lines = [f"{len(self.tests)} folding tests; held-out error: {ho} RMSE",
-                 f"baseline (Eq. 1-3 refitted): K = {b.params[0]:.4g}, RMSE {b.rmse:.3f} rad, "
+        ho = "LOGO" if self.held_out == "logo" else ("LOO" if b.cv == "leave-one-out" else "CV")
+        lines = [f"verdict: {self.verdict.verdict} -- {self.verdict.text}",
+                 f"noise: {self.noise.text()}",
+                 f"{len(self.tests)} folding tests; held-out error: {ho} RMSE"
+                 + ("" if b.cv == "leave-one-out" else f" ({b.cv} cross-validation)"),
+                 f"baseline (Eq. 1-3 refitted): K = {b.params[0]:.4g} +- {b.se[0]:.2g}, RMSE {b.rmse:.3f} rad, "
                  f"{ho} {self.held_out_rmse(b):.3f} rad, R^2 {_r2(self.tests.alpha, b.predicted):.3f}"]
+        if self.columns.process or self.columns.groups:
+            lines.append("columns: " + "; ".join(
+                ([f"process {', '.join(self.columns.process)}"] if self.columns.process else [])
+                + ([f"groups {', '.join(self.columns.groups)}"] if self.columns.groups else [])))
         if self.check is not None and self.check.get("baseline"):
             c = self.check["baseline"]
-            lines.append(f"  closed form vs GDFE solves ({c['cells']} cells/hinge): max |diff| "
-                         f"{c['max_abs_diff']:.4f} rad")
+            lines.append(f"  closed form vs GDFE solves ({c['cells']} cells/hinge, {c['n_tests']} tests): "
+                         f"max |diff| {c['max_abs_diff']:.4f} rad")
         lines.append("where: " + self.regime)
-        lines.append(f"{'model':36s} {'k':>2s} {'RMSE':>7s} {'LOO':>7s}"
+        lines.append(f"{'model':44s} {'k':>2s} {'RMSE':>7s} {'LOO':>7s}"
                      + (f" {'LOGO':>7s}" if self.held_out == "logo" else "") + f" {'shrink':>7s} {'AICc':>8s}")
         for f in [b] + self.fits:
-            lines.append(f"{f.name:36s} {f.model.n_params:2d} {f.rmse:7.3f} {f.loo_rmse:7.3f}"
-                         + (f" {f.logo_rmse:7.3f}" if self.held_out == "logo" else "")
-                         + f" {100 * self.shrink(f):6.1f}% {f.aicc:8.2f}"
-                         + ("  <- best" if f is self.best else ""))
-        bp = ", ".join(f"{k} = {v:.4g}" for k, v in self.best.param_dict().items())
+            flag = ("  <- best" if f is self.best else "  (not identifiable)" if not f.identifiable
+                    else f"  (= {f.equals})" if f.equals else "")
+            logo = f.logo_rmse
+            lines.append(f"{f.name:44s} {f.model.n_params:2d} {f.rmse:7.3f} {f.loo_rmse:7.3f}"
+                         + ((f" {logo:7.3f}" if logo is not None else f" {'-':>7s}")
+                            if self.held_out == "logo" else "")
+                         + f" {100 * self.shrink(f):6.1f}% {f.aicc:8.2f}" + flag)
+        bp = ", ".join(f"{p['name']} = {p['value']:.4g}" + (f" +- {p['se']:.2g}" if p["se"] is not None else "")
+                       + (" (at bound)" if p["at_bound"] else "") for p in self.best.parameters())
         lines.append(f"best: {self.best.name} ({bp}); {ho} RMSE {self.held_out_rmse(b):.3f} -> "
                      f"{self.held_out_rmse(self.best):.3f} rad ({100 * self.shrink(self.best):.0f} % less)")
+        if self.selected is not self.best:
+            lines.append(f"  (held-out errors alone would name {self.selected.name}; the baseline is within the "
+                         f"noise, so it is not needed)")
         lines.append("after the best model: " + self.regime_best)
+        lines += [f"warning: {w}" for w in self.warnings]
         return "\n".join(lines)
+
+
+def _num(v):
+    return float(v) if v is not None and math.isfinite(v) else None
 
 
 def _r2(y, p):
     y, p = np.asarray(y, float), np.asarray(p, float)
-    return float(1.0 - ((y - p) ** 2).sum() / ((y - y.mean()) ** 2).sum())
+    ss = float(((y - y.mean()) ** 2).sum())
+    return float(1.0 - ((y - p) ** 2).sum() / ss) if ss > 0 else float("nan")
 
 
-def numeric_columns(tests):
-    """Extra columns of ``tests`` whose every value is a finite number, as float arrays."""
-    out = {}
-    for k, v in tests.extra.items():
-        try:
-            x = np.array([float(s) for s in v])
-        except ValueError:
-            continue
-        if np.all(np.isfinite(x)):
-            out[k] = x
-    return out
+def _check_subset(pred, n=CHECK_TESTS):
+    """Indices of at most ``n`` tests evenly spread over the predicted angles."""
+    order = np.argsort(pred, kind="stable")
+    if order.size <= n:
+        return np.sort(order)
+    return np.sort(order[np.unique(np.linspace(0, order.size - 1, n).round().astype(int))])
 
 
-def diagnose(tests, *, group=None, pairs=True, check=None, models=None):
+def diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=None, models=None):
     """Diagnose the gap between folding tests and the calibrated GDFE hinge.
 
     Parameters
@@ -206,58 +424,168 @@ def diagnose(tests, *, group=None, pairs=True, check=None, models=None):
         The tests, or the path of a CSV with columns ``L_mm, d_mm, h_mm, alpha_rad`` (and
         any others; bad rows are reported by row number and column).
     group : str, optional
-        Column holding a group label (batch, print job, ...): enables leave-one-group-out,
-        which then ranks the models. Default: the column ``group`` when there is one.
+        Column holding a group label (batch, print job, ...) held out group by group, which
+        then ranks the group-free models. Default: the column ``group``, else the first text
+        column whose labels repeat.
+    sigma : float, optional
+        The noise of the measured angles [rad] (standard deviation); overrides a ``sigma_rad``
+        column and replicate rows.
+    process : sequence of str, optional
+        The numeric columns ``partial_activation`` may use (default every numeric column that
+        varies; ``()`` for none).
     pairs : bool
         Also fit every pair of effects.
     check : {"coarse", "default", "fine"}, optional
-        Simulate the tests with GDFE at this resolution and compare with the closed forms
-        of the baseline and the best model.
+        Simulate (at most :data:`CHECK_TESTS` of) the tests with GDFE at this resolution and
+        compare with the closed forms of the baseline and the best model.
     models : list of Model, optional
         Models to compare instead of the catalogue (the baseline is always fitted).
 
     Returns
     -------
     Diagnosis
+
+    Raises
+    ------
+    GdfeError
+        Fewer than 5 tests, a group or process column that is not there, a bad ``sigma`` or a
+        bad ``sigma_rad`` value (naming its row).
     """
     if not isinstance(tests, FoldingTests):
         tests = load_folding_tests(tests)
     n = len(tests)
     if n < 5:
         raise GdfeError(f"tests: need at least 5 folding tests to fit and hold out, got {n}")
-    groups = None
-    if group is None and "group" in tests.extra:
-        group = "group"
-    if group is not None:
-        if group not in tests.extra:
-            raise GdfeError(f"group: no column {group!r} in the tests; columns besides L_mm, d_mm, "
-                             f"h_mm, alpha_rad: {', '.join(tests.extra) or 'none'}")
-        groups = np.asarray(tests.extra[group])
-        if len(np.unique(groups)) < 2:
-            log.info("group column %r has a single value: no leave-one-group-out", group)
-            groups = None
+    if sigma is not None and not (is_finite_number(sigma) and sigma > 0):
+        raise GdfeError(f"sigma: expected a positive noise in rad, got {sigma!r}")
+    if check is not None:
+        from gdfe.diagnosis.forward import CELLS
+
+        check_choice("check", check, CELLS)
+    cols = read_columns(tests, group=group, process=process)
     L, d, h, alpha = tests.L, tests.d, tests.h, tests.alpha
-    base = evaluate(Model(()), L, d, h, alpha, groups)
-    models = [m for m in (catalogue(pairs) if models is None else models) if m.effects]
+    keys = [L, d, h, *cols.process.values()]
+    keys += [np.unique(v, return_inverse=True)[1].ravel().astype(float) for v in cols.groups.values()]
+    noise = noise_of(alpha, sigma=sigma, sigma_column=cols.sigma, keys=np.column_stack(keys))
+    weights = None
+    if noise.source == "sigma_rad column" and np.ptp(noise.sigma) > 0:
+        weights = 1.0 / noise.sigma**2
+    groups = cols.groups.get(cols.logo)
+    kind = "logo" if groups is not None else "loo"
+
+    def fit(m):
+        x = cols.process[m.process] if m.process else None
+        g = m.group_index(cols.groups[m.group]) if m.group else None
+        return evaluate(m, L, d, h, alpha, groups, x=x, group=g, weights=weights)
+
+    base = fit(Model(()))
+    if models is None:
+        models = catalogue(pairs, process=list(cols.process))
     fits = []
     for m in models:
+        if not m.effects:
+            continue
         if n - 1 <= m.n_params + 1:
             log.info("%s: %d parameters need more than %d tests; skipped", m.name, m.n_params, n)
             continue
-        fits.append(evaluate(m, L, d, h, alpha, groups))
-    kind = "logo" if groups is not None else "loo"
-    best, cands = select([base] + fits, alpha, kind)
-    fits.sort(key=lambda f: f.held_out_rmse(kind))
-    inputs = {"L_mm": L, "d_mm": d, "h_mm": h, **numeric_columns(tests)}
-    where, regime = residual_analysis(base.residuals, {**inputs, "predicted": base.predicted})
-    where_b, regime_b = residual_analysis(best.residuals, {**inputs, "predicted": best.predicted})
+        fits.append(fit(m))
+    mark_equal([base] + fits, alpha)
+    selected, cands = select([base] + fits, alpha, kind, weights=weights)
+    selected, batch_fits = _batch_step(selected, fits, cols, fit, alpha, weights, n)
+    fits += [f for f in batch_fits if f not in fits]
+    mark_equal([base] + fits, alpha)
+    fits.sort(key=lambda f: (f.held_out_rmse(kind) if f.held_out_rmse(kind) is not None
+                             else f.loo_rmse))
+
+    inputs = {"L_mm": L, "d_mm": d, "h_mm": h, **cols.process}
+    lof_base = lack_of_fit(base.residuals, base.model.n_params, noise)
+    where, regime = residual_analysis(base.residuals, {**inputs, "predicted": base.predicted}, cols.groups)
+    by_group = group_analysis(base.residuals, cols.groups)
+    struct_base = structure(where + by_group)
+    best = selected
+    if noise.known and lof_base["within"] and not struct_base:
+        best = base  # within the noise: nothing to explain
+    lof_best = lack_of_fit(best.residuals, best.model.n_params, noise)
+    where_b, regime_b = residual_analysis(best.residuals, {**inputs, "predicted": best.predicted}, cols.groups)
+    by_group_b = group_analysis(best.residuals, cols.groups)
+    struct_best = structure(where_b + by_group_b)
+    verdict = decide(best_name=best.name, best_is_baseline=not best.model.effects, lof_base=lof_base,
+                     lof_best=lof_best, structure_base=struct_base, structure_best=struct_best,
+                     gap_base=gap(alpha, base.loo_predicted, noise), gap_best=gap(alpha, best.loo_predicted, noise),
+                     noise=noise)
+    excluded = [{"name": f.name, "reason": (f"parameters not identifiable from these data "
+                                            f"({', '.join(f.unidentified)})" if not f.identifiable else
+                                            f"predictions equal those of {f.equals}")}
+                for f in fits if not f.usable]
     diag = Diagnosis(tests=tests, groups=groups, held_out=kind, baseline=base, fits=fits, best=best,
-                     candidates=cands, where=where, regime=regime, where_best=where_b,
-                     regime_best=regime_b, inputs=inputs)
+                     candidates=cands, where=where + by_group, regime=regime, where_best=where_b + by_group_b,
+                     regime_best=regime_b, inputs=inputs, columns=cols, noise=noise, verdict=verdict,
+                     selected=selected, lack_of_fit={"baseline": lof_base, "best": lof_best},
+                     structure=struct_base, structure_best=struct_best, excluded=excluded)
+    diag.warnings = _warnings(diag)
     if check:
         from gdfe.diagnosis.forward import gdfe_check
 
-        diag.check = {"baseline": gdfe_check(base.model, base.params, L, d, h, resolution=check)}
+        idx = _check_subset(base.predicted)
+
+        def sub(f):
+            x = cols.process[f.model.process][idx] if f.model.process else None
+            g = f.model.group_index(cols.groups[f.model.group])[idx] if f.model.group else None
+            c = gdfe_check(f.model, f.params, L[idx], d[idx], h[idx], x=x, group=g, resolution=check)
+            c["n_tests"] = int(idx.size)
+            return c
+
+        diag.check = {"baseline": sub(base)}
         if best is not base:
-            diag.check["best"] = gdfe_check(best.model, best.params, L, d, h, resolution=check)
+            diag.check["best"] = sub(best)
+        if not all(c["converged"] for c in diag.check.values()):
+            diag.warnings.append("a GDFE solve of the check did not converge: its difference to the closed "
+                                 "form is not a discretisation error")
     return diag
+
+
+def _batch_step(best, fits, cols, fit, alpha, weights, n):
+    """Add a batch effect on a group column to the chosen model when it lowers the
+    leave-one-out error significantly; then drop any other effect it makes unnecessary."""
+    tried = []
+    if not cols.groups or "batch" in best.model.effects:
+        return best, tried
+    found = None
+    for col, labels in cols.groups.items():
+        m = best.model.with_effect("batch", group=col, labels=np.unique(labels))
+        if n - 1 <= m.n_params + 1:
+            continue
+        f = next((g for g in fits if g.model == m), None) or fit(m)
+        tried.append(f)
+        better, mean, _ = compare(f, best, alpha, "loo", STEP_SE[min(best.model.level, 1)], weights)
+        if better and (found is None or mean < found[1]):
+            found = (f, mean)
+    if found is None:
+        return best, tried
+    current = found[0]
+    for e in [e for e in current.model.effects if e != "batch"]:
+        simpler = current.model.without(e)
+        f = next((g for g in tried if g.model == simpler), None) or fit(simpler)
+        tried.append(f)
+        better, _, _ = compare(current, f, alpha, "loo", STEP_SE[min(simpler.level, 1)], weights)
+        if not better:
+            current = f
+    return current, tried
+
+
+def _warnings(diag):
+    out = []
+    best = diag.best
+    if best.at_bound:
+        out.append(f"{best.name}: {', '.join(best.at_bound)} ended on a bound of the physical range: the data "
+                   f"push past what the effect allows, so read the value as that edge, not as a measurement")
+    if not best.success:
+        out.append(f"{best.name}: the optimiser did not report convergence of the fit")
+    for e in diag.excluded:
+        out.append(f"{e['name']} never chosen: {e['reason']}")
+    for k, why in diag.columns.ignored.items():
+        out.append(f"column {k!r} not used: {why}")
+    if not diag.noise.known:
+        out.append("the noise is unknown: give --sigma (or a sigma_rad column, or replicate rows) for a verdict "
+                   "against the noise")
+    return out

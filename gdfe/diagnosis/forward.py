@@ -124,8 +124,11 @@ def simulate_fold(L, R, h, *, alpha_max=None, resolution="coarse"):
             "seconds": time.perf_counter() - t0}
 
 
-def simulate_model(model, params, L, d, h, *, resolution="coarse"):
+def simulate_model(model, params, L, d, h, *, x=None, group=None, resolution="coarse"):
     """GDFE fold angles of tests ``(L, d, h)`` with a model's effects built into the simulation.
+
+    ``partial_activation`` and ``batch`` enter through the contraction ratio of each test's
+    hinge, like the deformation principle.
 
     Parameters
     ----------
@@ -133,6 +136,10 @@ def simulate_model(model, params, L, d, h, *, resolution="coarse"):
     params : (k,) float array
         In the order of ``model.param_names``.
     L, d, h : float or (n,) float arrays [mm]
+    x : (n,) float array, optional
+        The process column of ``partial_activation``.
+    group : (n,) int array, optional
+        Group index of each test (``batch``).
 
     Returns
     -------
@@ -148,7 +155,7 @@ def simulate_model(model, params, L, d, h, *, resolution="coarse"):
         raise GdfeTypeError(f"model: expected a Model or a name, got {type(model).__name__}")
     L, d, h = np.broadcast_arrays(*(np.atleast_1d(np.asarray(a, float)) for a in (L, d, h)))
     p = dict(zip(model.param_names, np.asarray(params, float)))
-    c = np.broadcast_to(model.contraction(params, d, h), L.shape)
+    c = np.broadcast_to(model.contraction(np.asarray(params, float), d, h, x, group), L.shape)
     alpha = np.full(L.shape, np.nan)
     ok = np.zeros(L.shape, bool)
     for i in range(L.size):
@@ -162,8 +169,9 @@ def simulate_model(model, params, L, d, h, *, resolution="coarse"):
     return alpha, ok
 
 
-def gdfe_check(model, params, L, d, h, *, resolution="coarse"):
-    """Compare a model's closed form with the GDFE simulation of the same tests.
+def gdfe_check(model, params, L, d, h, *, x=None, group=None, resolution="coarse"):
+    """Compare a model's closed form with the GDFE simulation of the same tests
+    (``x``, ``group``: see :func:`simulate_model`).
 
     Returns
     -------
@@ -177,8 +185,8 @@ def gdfe_check(model, params, L, d, h, *, resolution="coarse"):
     if isinstance(model, str):
         model = model_by_name(model)
     L, d, h = (np.asarray(a, float) for a in (L, d, h))
-    closed = model.predict(np.asarray(params, float), L, d, h)
-    sim, ok = simulate_model(model, params, L, d, h, resolution=resolution)
+    closed = model.predict(np.asarray(params, float), L, d, h, x, group)
+    sim, ok = simulate_model(model, params, L, d, h, x=x, group=group, resolution=resolution)
     valid = np.isfinite(sim)
     diff = (sim - closed)[valid]
     return {

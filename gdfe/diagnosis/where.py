@@ -1,9 +1,17 @@
-"""Where the gap lies: how the residuals of a model depend on each input and on the prediction.
+"""Where the gap lies: how the residuals of a model depend on each input, on the prediction
+and on the groups of the tests.
 
-For every input (and the predicted angle) the residuals are correlated with it (Pearson's r
-and Spearman's rho with their p-values, and the least-squares slope), their magnitude too
-(does the error grow with the input?), and they are binned at the input's terciles to see
-in which regime the squared error concentrates. The regime is named in words.
+For every numeric input (and the predicted angle) the residuals are correlated with it
+(Pearson's r and Spearman's rho with their p-values, and the least-squares slope), their
+magnitude too (does the error grow with the input?), and they are binned at the input's
+terciles to see in which regime the squared error concentrates; a Kruskal-Wallis test of the
+bins says whether the residuals differ between them (a trend that need not be monotone).
+For every text column (batch, operator, printer) the residuals are compared between its
+groups (Kruskal-Wallis, mean residual per group). The regime is named in words.
+
+:func:`structure` reads the p-values of all these tests together: an entry shows structure
+when one of its p-values is below ``level`` divided by the number of tests made (Bonferroni),
+so that searching many columns does not find structure in noise.
 
 Angles in radians, lengths in mm.
 """
@@ -11,10 +19,14 @@ Angles in radians, lengths in mm.
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
-__all__ = ["residual_analysis", "describe_input"]
+__all__ = ["residual_analysis", "group_analysis", "describe_input", "structure", "STRUCTURE_LEVEL"]
+
+#: Family-wise level of :func:`structure`.
+STRUCTURE_LEVEL = 0.01
 
 # input name -> (what it is, its low regime, its high regime)
 _WORDS = {
@@ -38,7 +50,13 @@ def _bins(x, n_bins):
     return [np.nonzero(k == b)[0] for b in range(n_bins) if (k == b).any()]
 
 
-def residual_analysis(residuals, inputs):
+def _p(value):
+    """A p-value, 1 where a test is undefined (constant residuals)."""
+    value = float(value)
+    return value if math.isfinite(value) else 1.0
+
+
+def residual_analysis(residuals, inputs, groups=None):
     """Residual trends and the regime where the error concentrates.
 
     Parameters
@@ -47,6 +65,9 @@ def residual_analysis(residuals, inputs):
         Measured minus predicted.
     inputs : dict of str -> (n,) float array
         The inputs (e.g. ``L_mm``, ``d_mm``, further numeric columns) and ``predicted``.
+    groups : dict of str -> (n,) array, optional
+        Text columns; a sentence names the group that differs most where the groups differ
+        (:func:`group_analysis`).
 
     Returns
     -------
@@ -54,8 +75,10 @@ def residual_analysis(residuals, inputs):
         One per input that varies, strongest residual trend first: ``input``, ``pearson_r``,
         ``pearson_p``, ``spearman_rho``, ``spearman_p``, ``slope`` [rad per unit],
         ``abs_spearman_rho`` (magnitude of the error against the input), ``bins`` (range,
-        n, mean and RMS residual, share of the squared error), ``concentration`` (largest
-        bin's share of the squared error over its share of the tests), ``text``.
+        n, mean and RMS residual, share of the squared error), ``bins_p`` (Kruskal-Wallis
+        test of the residuals between the bins), ``concentration`` (largest bin's share of
+        the squared error over its share of the tests), ``p`` (the smaller of ``spearman_p``
+        and ``bins_p``), ``n_tests`` (2), ``text``.
     regime : str
         Sentences naming the regime where the error concentrates: the mean residual in each
         bin of the input with the strongest trend, the bin with the largest RMS residual,
@@ -73,26 +96,124 @@ def residual_analysis(residuals, inputs):
         x = np.asarray(x, float)
         if x.shape != r.shape or np.ptp(x) <= 1e-12 * max(1.0, np.abs(x).max()):
             continue
-        pr, pp = stats.pearsonr(x, r)
-        sr, sp = stats.spearmanr(x, r)
-        ar, _ = stats.spearmanr(x, np.abs(r))
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            pr, pp = stats.pearsonr(x, r) if np.ptp(r) > 0 else (0.0, 1.0)
+            sr, sp = stats.spearmanr(x, r) if np.ptp(r) > 0 else (0.0, 1.0)
+            ar, _ = stats.spearmanr(x, np.abs(r)) if np.ptp(np.abs(r)) > 0 else (0.0, 1.0)
+        sr, ar, pr = (float(v) if math.isfinite(float(v)) else 0.0 for v in (sr, ar, pr))
         slope = float(np.polyfit(x, r, 1)[0])
         bins = []
-        for g in _bins(x, n_bins):
+        members = _bins(x, n_bins)
+        for g in members:
             bins.append({"range": [float(x[g].min()), float(x[g].max())], "n": int(g.size),
                          "mean": float(r[g].mean()), "rms": float(np.sqrt(sq[g].mean())),
                          "share": float(sq[g].sum() / total)})
+        bp = _kruskal([r[g] for g in members])
         conc = max(b["share"] / (b["n"] / n) for b in bins)
         noun = describe_input(name)[0]
         trend = "rise" if sr > 0 else "fall"
         text = (f"residuals {trend} with {noun} (Spearman rho {sr:+.2f}, p = {sp:.2g}; "
                 f"slope {slope:+.3g} rad per unit)")
-        out.append({"input": name, "pearson_r": float(pr), "pearson_p": float(pp),
-                    "spearman_rho": float(sr), "spearman_p": float(sp), "slope": slope,
-                    "abs_spearman_rho": float(ar), "bins": bins, "concentration": float(conc),
-                    "text": text})
+        out.append({"input": name, "kind": "numeric", "pearson_r": float(pr), "pearson_p": _p(pp),
+                    "spearman_rho": float(sr), "spearman_p": _p(sp), "slope": slope,
+                    "abs_spearman_rho": float(ar), "bins": bins, "bins_p": bp,
+                    "concentration": float(conc), "p": min(_p(sp), bp), "n_tests": 2, "text": text})
     out.sort(key=lambda w: -abs(w["spearman_rho"]))
-    return out, _regime(out, r, inputs)
+    regime = _regime(out, r, inputs)
+    if groups:
+        by = group_analysis(r, groups)
+        strong = [g for g in by if g["p"] < STRUCTURE_LEVEL]
+        if strong:
+            regime += " " + " ".join(g["text"][0].upper() + g["text"][1:] + "." for g in strong)
+    return out, regime
+
+
+def _kruskal(samples):
+    """Kruskal-Wallis p-value of residual samples (1 where undefined: one sample, all equal)."""
+    from scipy import stats
+
+    samples = [s for s in samples if len(s) > 0]
+    if len(samples) < 2 or np.ptp(np.concatenate(samples)) <= 0:
+        return 1.0
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return _p(stats.kruskal(*samples).pvalue)
+
+
+def group_analysis(residuals, groups):
+    """How the residuals differ between the groups of each text column.
+
+    Parameters
+    ----------
+    residuals : (n,) float array [rad]
+    groups : dict of str -> (n,) array
+        Text columns (a label per test).
+
+    Returns
+    -------
+    list of dict
+        One per column with at least two groups, smallest p first: ``input``, ``kind``
+        (``"group"``), ``kruskal_p`` (= ``p``), ``n_tests`` (1), ``groups`` (label, n, mean
+        and RMS residual, largest mean deviation first), ``text``.
+    """
+    r = np.asarray(residuals, float)
+    out = []
+    for name, labels in groups.items():
+        labels = np.asarray(labels).astype(str)
+        if labels.shape != r.shape:
+            continue
+        uniq, inv = np.unique(labels, return_inverse=True)
+        if uniq.size < 2:
+            continue
+        p = _kruskal([r[inv == k] for k in range(uniq.size)])
+        rows = [{"label": str(lab), "n": int((inv == k).sum()), "mean": float(r[inv == k].mean()),
+                 "rms": float(np.sqrt(np.mean(r[inv == k] ** 2)))} for k, lab in enumerate(uniq)]
+        rows.sort(key=lambda g: -abs(g["mean"]))
+        top = rows[0]
+        verb = "under-predicted" if top["mean"] > 0 else "over-predicted"
+        text = (f"residuals differ between the {uniq.size} groups of {name} (Kruskal-Wallis p = {p:.2g}); "
+                f"{name} {top['label']!r} ({top['n']} tests) is {verb} by {abs(top['mean']):.3f} rad on average")
+        out.append({"input": name, "kind": "group", "kruskal_p": p, "p": p, "n_tests": 1,
+                    "groups": rows, "text": text})
+    out.sort(key=lambda g: g["p"])
+    return out
+
+
+def structure(entries, level=STRUCTURE_LEVEL):
+    """The entries of a residual analysis that show structure, at family-wise level ``level``.
+
+    Parameters
+    ----------
+    entries : list of dict
+        Entries of :func:`residual_analysis` and :func:`group_analysis` (each with ``p`` and
+        ``n_tests``).
+    level : float
+        Family-wise level: an entry shows structure when its ``p`` is below ``level`` over
+        the number of tests made (Bonferroni).
+
+    Returns
+    -------
+    list of dict
+        ``input``, ``kind``, ``p``, ``threshold`` and ``text`` of each, smallest ``p`` first.
+    """
+    m = sum(int(e.get("n_tests", 1)) for e in entries) or 1
+    thr = level / m
+    out = []
+    for e in entries:
+        if e["p"] < thr:
+            if e["kind"] == "numeric" and e["bins_p"] < e["spearman_p"]:
+                means = ", ".join(f"{b['mean']:+.3f}" for b in e["bins"])
+                text = (f"against {e['input']}: the mean residual differs between its terciles ({means} rad; "
+                        f"Kruskal-Wallis p = {e['bins_p']:.2g})")
+            elif e["kind"] == "numeric":
+                text = f"against {e['input']}: {e['text']}"
+            else:
+                text = f"by {e['input']}: {e['text']}"
+            out.append({"input": e["input"], "kind": e["kind"], "p": float(e["p"]), "threshold": thr,
+                        "text": text})
+    out.sort(key=lambda e: e["p"])
+    return out
 
 
 def _regime(where, r, inputs):
