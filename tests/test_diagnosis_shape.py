@@ -181,12 +181,98 @@ def test_ply_is_read(design, tmp_path):
     assert cells is None
 
 
-def test_auto_alignment_uses_correspondences_only_for_a_mesh_of_the_design(design, tmp_path):
+def test_auto_alignment_uses_correspondences_only_where_they_fit(design, tmp_path):
     pts = gdfe.simulate(design).points
     path = tmp_path / "same_count.csv"
-    np.savetxt(path, pts, delimiter=",")  # a file of the right size, but no cells to prove it
+    shuffled = pts[np.random.default_rng(0).permutation(len(pts))]
+    np.savetxt(path, shuffled, delimiter=",")  # the right size, but not the design's vertices in order
     assert diagnose_shape(design, path, correct=False).method == "icp"
     assert diagnose_shape(design, path, correct=False, align="correspondence").method == "correspondence"
+
+
+def test_exact_copy_of_the_vertices_has_no_floor(tmp_path):
+    """The 1.6 mm hinge with two cell layers: a third of its vertices lie inside the film, h/2 from
+    either face, which left ICP a 52 um floor. The copy now aligns by correspondences to round-off,
+    and ICP on the surface vertices alone has no floor either."""
+    from gdfe.io import surface_faces
+
+    des = gdfe.hinge(1.6, d=0.33, nz=2)
+    pts = gdfe.simulate(des).points
+    moved = pts @ _rotation(5).T + np.array([1.0, 2.0, 3.0])
+    path = tmp_path / "copy.csv"
+    np.savetxt(path, moved, delimiter=",")
+    res = diagnose_shape(des, path, correct=False)
+    assert res.method == "correspondence" and res.rms_before < 1e-9 and res.matches
+    on_surface = np.unique(surface_faces(des)[0])
+    assert on_surface.size < len(pts)  # the interior (mid-plane) vertices are not on the surface
+    _, _, rms = align_icp(moved[on_surface], Surface(pts, des))
+    assert rms < 1e-9
+
+
+# -- the scan must be the part -----------------------------------------------------------------------
+def test_wrong_part_does_not_match(design, tmp_path):
+    """The Figure 6 hinge's own VTU against the three-hinge strip: another part, no region named."""
+    from gdfe.diagnosis.shape import MATCH_COVERAGE, NO_MATCH
+    from gdfe.io import write_vtu
+
+    other = gdfe.hinge(1.6, d=0.33)
+    path = write_vtu(tmp_path / "hinge.vtu", gdfe.simulate(other).points, other)
+    res = diagnose_shape(design, path)
+    assert res.verdict == NO_MATCH and not res.matches
+    assert res.regions == [] and res.named == [] and res.corrected_R == {}
+    assert res.match["coverage"] < MATCH_COVERAGE and res.match["residual"] > 0
+    assert res.n_simulations <= 10  # one nominal solve and at most 9 of the common-factor search
+    text = res.text()
+    assert text.startswith(NO_MATCH) and "RMS distance to the simulated surface" in text
+    assert json.loads(json.dumps(res.as_dict()))["verdict"] == NO_MATCH
+
+
+def test_identical_points_do_not_match(design):
+    from gdfe.diagnosis.shape import NO_MATCH
+
+    res = diagnose_shape(design, np.zeros((50, 3)))
+    assert res.verdict == NO_MATCH and res.n_simulations == 0 and res.regions == []
+    assert "1 distinct point" in res.match["reasons"][0]
+    res = diagnose_shape(design, np.outer(np.linspace(0.0, 1.0, 30), [1.0, 2.0, 0.5]))  # collinear
+    assert res.verdict == NO_MATCH and "a line at most" in res.match["reasons"][0]
+
+
+def test_random_cloud_does_not_match(design):
+    from gdfe.diagnosis.shape import MATCH_RESIDUAL, NO_MATCH
+
+    cloud = np.random.default_rng(3).uniform(0.0, 10.0, (500, 3))
+    res = diagnose_shape(design, cloud)
+    assert res.verdict == NO_MATCH and res.named == []
+    assert res.match["relative_residual"] > MATCH_RESIDUAL
+    assert res.match["relative_residual"] == pytest.approx(res.match["residual"] / res.match["size"])
+
+
+@pytest.mark.parametrize("scale", [10.0, 0.1])
+def test_scale_error_does_not_match(design, scale):
+    """The part's surface measured in cm (x0.1) or with a factor 10 too many."""
+    from gdfe.diagnosis.shape import NO_MATCH
+
+    pts = gdfe.simulate(design).points
+    cloud = Surface(pts, design).samples * scale
+    res = diagnose_shape(design, cloud, correct=False)
+    assert res.verdict == NO_MATCH
+    assert res.match["scale"] == pytest.approx(scale, rel=0.3) or res.match["factor"] != 1.0
+
+
+def test_a_part_that_folded_less_everywhere_still_matches(design):
+    """Every hinge at R = 0.9 instead of 0.8: far from the nominal shape, but one common factor of
+    the contraction brings it back, so it is the part and its regions are reported."""
+    R = np.where(design.R < 1.0, 0.9, 1.0)
+    pts = gdfe.simulate(design.with_R(R)).points
+    res = diagnose_shape(design, Surface(pts, design).samples, correct=False)
+    assert res.matches and res.regions and res.verdict == "no gap localised"
+
+
+def test_cli_scan_that_does_not_match(design_file, tmp_path, capsys):
+    path = tmp_path / "cube.csv"
+    np.savetxt(path, np.random.default_rng(1).uniform(0.0, 10.0, (200, 3)), delimiter=",")
+    assert main(["diagnose-shape", str(design_file), str(path)]) == 4
+    assert capsys.readouterr().out.startswith("the scan does not match the design")
 
 
 def test_correspondence_needs_the_design_mesh(design):

@@ -2,23 +2,56 @@
 
 :func:`diagnose_shape`
 
-1. simulates the design and **aligns** the measured shape to it rigidly: with
+1. refuses a **degenerate** cloud at once (fewer than 4 distinct points, or points that
+   span less than a line's worth of the part: identical or collinear points);
+2. simulates the design and **aligns** the measured shape to it rigidly: with
    correspondences (Kabsch) when the measurement is a mesh of the design (same vertices and
    cells, e.g. a VTU written by ``gdfe simulate``), else by iterative closest points from a
    correspondence-free start (:func:`~gdfe.diagnosis.align.align_icp`), measuring each
-   point's exact distance to the simulated surface (:class:`~gdfe.diagnosis.surface.Surface`);
-2. reports the **deviation** per element and per region of the design
+   point's exact distance to the simulated surface (:class:`~gdfe.diagnosis.surface.Surface`).
+   A cloud with exactly the design's vertex count and no cells is aligned both ways and by
+   correspondences when they fit at least as well (an exact copy of the vertices);
+3. checks that **the scan is the part** (:func:`_match`): the RMS distance of the measured
+   points to the simulated surface must stay within :data:`MATCH_RESIDUAL` of the part's
+   size (its RMS radius), and the points must cover the part: the in-plane cells of the
+   design that own a measured point's closest surface point must be at least
+   :data:`MATCH_COVERAGE` of those that as many points spread evenly would reach. When the
+   nominal simulation fails this, but not by far (:data:`CLEAR_MISMATCH`), the contraction
+   ``1 - R`` of every contracting cell is scaled by one common factor (a bounded 1-D search
+   within :data:`FACTORS`, at most 9 simulations) in case the whole part folded more or less
+   than designed; if it still fails, the verdict is :data:`NO_MATCH`, with its residual,
+   coverage and scale, and no region is named. Another part, a random cloud or a scale error
+   (mm against cm or inches) end there, most before any search.
+
+   The thresholds were set on these cases (nominal shape; relative residual, coverage):
+   scans of the three-hinge test strip with one hinge's R changed from 0.8 to 1.0, 0.88, 0.6
+   or 0.4, of the Figure 6 hinge (L = 1.6 mm) at R = 0.5 or 0.9 instead of 0.69, and of the
+   tube example with one hinge unfolded or all at R = 0.8: 0.00-0.36 and 0.75-1.00 before,
+   at most 0.084 and at least 0.97 after the common factor where it was needed; another part
+   (the hinge against the strip or the tube, the strip against the hinge or the tube, the
+   tube against the strip): coverage 0.31-0.82 with residual 0.07-0.72, all but one beyond
+   :data:`CLEAR_MISMATCH` or below the coverage at once, and the one searched (the hinge
+   against the strip) still at coverage 0.68 after it;
+4. reports the **deviation** per element and per region of the design
    (:func:`~gdfe.diagnosis.regions.design_regions`), both after the global alignment and
    after aligning each region alone (its own shape error, which a global alignment spreads
    over the whole part). The deviation of a set of points is the RMS distance
    ``sqrt(mean_i d_i^2)``; of an element, over its 8 vertices (correspondences) or over the
    measured points whose closest surface point lies on its faces (ICP);
-3. **localises** the gap by refitting each contracting region's contraction ratio alone
+5. **localises** the gap by refitting each contracting region's contraction ratio alone
    (a bounded 1-D search with a GDFE re-simulation per evaluation) and naming the region
    whose correction removes the most deviation; further regions are named while each
    lowers the remaining RMS deviation by at least :data:`NAME_GAIN`, i.e. while
    ``rms_new <= (1 - NAME_GAIN) rms``; the named regions are then refitted together, and
    the deviation before and after is reported.
+
+A measured shape must be a scan of the surface: an exact copy of the simulated *vertices*
+of a design with two or more cell layers through the film (``nz >= 2``) includes the vertices
+inside the film, up to ``h / 2`` from any surface. Aligned by ICP such a copy kept an RMS
+distance of 52 um (the 1.6 mm hinge example, ``nz = 2``: 140 of its 666 vertices lie on the
+mid-plane, 145 um from both faces, and ICP shifts the cloud to split that), not an alignment
+error: its 526 surface vertices align to 1e-16 mm, and the whole copy now takes the
+correspondence alignment, to round-off.
 
 Measured shapes are read by :func:`~gdfe.diagnosis.scan.load_measured`. Lengths in mm.
 """
@@ -36,10 +69,24 @@ from gdfe.diagnosis.regions import design_regions
 from gdfe.diagnosis.scan import load_measured
 from gdfe.diagnosis.surface import Surface
 
-__all__ = ["ShapeDiagnosis", "diagnose_shape", "NAME_GAIN", "ALIGNMENTS"]
+__all__ = ["ShapeDiagnosis", "diagnose_shape", "NAME_GAIN", "ALIGNMENTS", "MATCH_RESIDUAL",
+           "MATCH_COVERAGE", "NO_MATCH"]
 
 #: A further region is named when correcting it lowers the RMS deviation by this fraction.
 NAME_GAIN = 0.2
+#: Largest RMS distance of the measured points to the simulated surface, over the part's RMS
+#: radius, of a scan of the part (see the module docstring for the cases it was set on).
+MATCH_RESIDUAL = 0.1
+#: Smallest share of the design's in-plane cells the measured points reach, over the share
+#: as many points spread evenly would reach.
+MATCH_COVERAGE = 0.8
+#: Beyond these (relative residual, coverage) of the nominal shape a scan does not match
+#: without trying a common contraction factor.
+CLEAR_MISMATCH = (0.5, 0.5)
+#: Range of the common contraction factor tried.
+FACTORS = (0.5, 2.0)
+#: The verdict of a scan that is not the part.
+NO_MATCH = "the scan does not match the design"
 #: The ``align`` choices of :func:`diagnose_shape`.
 ALIGNMENTS = ("auto", "correspondence", "icp")
 
@@ -50,6 +97,18 @@ class ShapeDiagnosis:
 
     Attributes
     ----------
+    verdict : str
+        :data:`NO_MATCH`, ``"no gap localised"`` or ``"the gap lies in ..."`` (first in the
+        text and the JSON).
+    matches : bool
+        Whether the scan is the part (see :func:`_match`); when not, no region is named.
+    match : dict
+        ``residual`` [mm] (RMS distance of the aligned points to the simulated surface),
+        ``size`` [mm] (RMS radius of the simulated part), ``relative_residual``,
+        ``coverage`` (share of the design's in-plane cells reached, over the share as many
+        evenly spread points reach), ``scale`` (RMS radius of the cloud over the part's),
+        ``factor`` (the common contraction factor the check settled on, 1 for the design),
+        ``reasons`` (what failed), ``seconds``.
     method : str
         ``"correspondence"`` or ``"icp"``.
     rms_before, rms_after : float [mm]
@@ -60,6 +119,7 @@ class ShapeDiagnosis:
         Per region: ``name``, ``n_cells``, ``rms`` (global alignment), ``local_rms`` (region
         aligned alone), ``R_design``, ``single_fit`` R and ``single_fit_rms`` (overall RMS
         with only this region corrected), ``R_fit`` and ``rms_after`` (after the correction).
+        Empty when the scan does not match.
     named : list of str
         Regions where the gap lies.
     corrected_R : dict of str -> float
@@ -81,9 +141,20 @@ class ShapeDiagnosis:
     converged: bool
     n_simulations: int
     transform: dict
+    matches: bool = True
+    match: dict = dataclasses.field(default_factory=dict)
+
+    @property
+    def verdict(self) -> str:
+        if not self.matches:
+            return NO_MATCH
+        if not self.named:
+            return "no gap localised"
+        return "the gap lies in " + ", ".join(self.named)
 
     def as_dict(self) -> dict:
-        return {"design": self.design_path, "measured": self.measured_path, "alignment": self.method,
+        return {"verdict": self.verdict, "matches": self.matches, "match": self.match,
+                "design": self.design_path, "measured": self.measured_path, "alignment": self.method,
                 "n_measured_points": self.n_measured, "rms_before": self.rms_before,
                 "rms_after": self.rms_after,
                 "shrink": 1.0 - self.rms_after / self.rms_before if self.rms_before > 0 else 0.0,
@@ -93,8 +164,25 @@ class ShapeDiagnosis:
                 "transform": self.transform, "name_gain": NAME_GAIN}
 
     def text(self) -> str:
-        lines = [f"{self.measured_path} against {self.design_path}: {self.n_measured} points, "
-                 f"aligned by {self.method}",
+        m = self.match
+        if not self.matches:
+            lines = [f"{NO_MATCH}: {'; '.join(m['reasons'])}",
+                     f"{self.measured_path} against {self.design_path}: {self.n_measured} points"
+                     + (f", aligned by {self.method}" if self.method else "")]
+            if m.get("residual") is not None:
+                lines.append(f"RMS distance to the simulated surface {m['residual']:.4g} mm "
+                             f"({100 * m['relative_residual']:.0f} % of the part's RMS radius "
+                             f"{m['size']:.4g} mm; at most {100 * MATCH_RESIDUAL:.0f} %), coverage "
+                             f"{m['coverage']:.2f} (at least {MATCH_COVERAGE:g}), scale {m['scale']:.3g}"
+                             + (f", best common contraction factor {m['factor']:.3g}" if m.get("factor") != 1.0
+                                else ""))
+            lines.append("no region is named: the scan is not this part (another part, degenerate or random "
+                         "points, or a scale error)")
+            return "\n".join(lines)
+        lines = [f"{self.verdict}",
+                 f"{self.measured_path} against {self.design_path}: {self.n_measured} points, "
+                 f"aligned by {self.method}; matches the design (RMS distance {m['residual']:.3g} mm, "
+                 f"{100 * m['relative_residual']:.0f} % of its size; coverage {m['coverage']:.2f})",
                  f"RMS deviation {self.rms_before:.4g} mm"
                  + (f" -> {self.rms_after:.4g} mm after correcting {', '.join(self.named)}" if self.named else ""),
                  f"{'region':12s} {'cells':>6s} {'RMS':>9s} {'local RMS':>10s} {'R design':>9s} "
@@ -137,12 +225,13 @@ class _Comparer:
             raise GdfeError(f"measured: expected the design's {n} vertices in its order for correspondence "
                             f"alignment, got {measured.shape[0]} points")
         self.method = "correspondence" if (align == "correspondence" or (align == "auto" and same)) else "icp"
+        # the design's vertex count without cells to prove it: try correspondences too
+        self.maybe_vertices = align == "auto" and self.method == "icp" and measured.shape[0] == n
         self.Q, self.t = np.eye(3), np.zeros(3)
         self._first = None
-        if self.method == "icp":
-            from gdfe.io import surface_faces
+        from gdfe.io import surface_faces
 
-            self.faces = surface_faces(design)
+        self.faces = surface_faces(design)
 
     def simulate(self, R):
         import gdfe
@@ -150,6 +239,7 @@ class _Comparer:
         res = gdfe.simulate(self.design.with_R(R), **self.options)
         self.n_sims += 1
         self.converged &= bool(res.converged)
+        self.last_sim = res.points
         return res.points
 
     def compare(self, sim, restart=False):
@@ -157,6 +247,17 @@ class _Comparer:
         rigid alignment; ICP restarts from every axis flip when ``restart``."""
         from gdfe.measure import rigid_align
 
+        if self.maybe_vertices:  # decided once, on the first shape compared
+            self.maybe_vertices = False
+            dev_i, owner_i = self.compare(sim, restart=True)
+            Qi, ti = self.Q, self.t
+            Q, t = rigid_align(self.measured, sim)
+            dev_c = np.linalg.norm(self.measured @ Q.T + t - sim, axis=1)
+            if np.sqrt(np.mean(dev_c**2)) <= np.sqrt(np.mean(dev_i**2)):
+                self.method, self.Q, self.t = "correspondence", Q, t
+                return dev_c, None
+            self.Q, self.t = Qi, ti
+            return dev_i, owner_i
         if self.method == "correspondence":
             Q, t = rigid_align(self.measured, sim)
             dev = np.linalg.norm(self.measured @ Q.T + t - sim, axis=1)
@@ -176,6 +277,84 @@ class _Comparer:
     def rms(self, R):
         dev, _ = self.compare(self.simulate(R))
         return float(np.sqrt(np.mean(dev**2)))
+
+
+def _rms_radius(P):
+    """RMS distance of points to their centroid [mm]."""
+    P = np.asarray(P, float)
+    return float(np.sqrt(np.mean(np.sum((P - P.mean(0)) ** 2, axis=1))))
+
+
+def _degenerate(measured, design):
+    """Why a cloud cannot be a scan of the design (None when it can): too few distinct
+    points, or points that span no more than a line (identical or collinear points)."""
+    flat = design.mesh.points
+    size = float(np.linalg.svd(flat - flat.mean(0), compute_uv=False)[0] / np.sqrt(len(flat)))
+    distinct = np.unique(np.round(measured / (1e-9 * size)), axis=0).shape[0]
+    if distinct < 4:
+        return (f"the {len(measured)} points are only {distinct} distinct point(s): a degenerate cloud, "
+                f"not a scan of a surface")
+    sv = np.linalg.svd(measured - measured.mean(0), compute_uv=False) / np.sqrt(len(measured))
+    if sv[1] < 1e-3 * size:
+        return (f"the points span a line at most (spread {sv[0]:.3g} mm and {sv[1]:.2g} mm along their "
+                f"principal axes, against {size:.3g} mm of the flat design): a degenerate cloud")
+    return None
+
+
+def _match(comp, sim, dev, owner):
+    """Whether the aligned measurement is a scan of the simulated part (see the module docstring)."""
+    design = comp.design
+    n = len(comp.measured)
+    if comp.method == "correspondence":
+        size, coverage = _rms_radius(sim), 1.0
+    else:
+        size = _rms_radius(Surface(sim, design, faces=comp.faces).samples)
+        cols = design.mesh.cell_ij
+        key = cols[:, 0] * (int(cols[:, 1].max()) + 1) + cols[:, 1]
+        m = np.unique(key).size
+        hit = np.unique(key[owner]).size
+        coverage = hit / (m * (1.0 - (1.0 - 1.0 / m) ** n))
+    residual = float(np.sqrt(np.mean(dev**2)))
+    rel = residual / size
+    scale = _rms_radius(comp.measured) / size
+    reasons = []
+    if rel > MATCH_RESIDUAL:
+        reasons.append(f"the points lie {residual:.3g} mm (RMS) from the simulated surface, "
+                       f"{100 * rel:.0f} % of the part's size (at most {100 * MATCH_RESIDUAL:.0f} %)")
+    if coverage < MATCH_COVERAGE:
+        reasons.append(f"the points reach {100 * coverage:.0f} % of the part's cells that as many evenly spread "
+                       f"points would reach (at least {100 * MATCH_COVERAGE:.0f} %)")
+    if reasons and not 0.5 <= scale <= 2.0:
+        reasons.append(f"the cloud is {scale:.3g} times the part's size: a unit error (mm against cm or "
+                       f"inches) or another part?")
+    return {"residual": residual, "size": size, "relative_residual": rel, "coverage": float(coverage),
+            "scale": float(scale), "factor": 1.0, "reasons": reasons, "ok": not reasons}
+
+
+def _check_match(comp, R0, sim0, dev, owner):
+    """:func:`_match` of the design; when it fails, of the common factor of every contracting
+    cell's contraction ``1 - R`` (within :data:`FACTORS`) that brings the points closest to the
+    surface; not tried beyond :data:`CLEAR_MISMATCH`."""
+    from scipy.optimize import minimize_scalar
+
+    m = _match(comp, sim0, dev, owner)
+    if m["ok"] or m["relative_residual"] > CLEAR_MISMATCH[0] or m["coverage"] < CLEAR_MISMATCH[1]:
+        return m
+    contracting = R0 < 1.0
+    best = {"m": m}
+
+    def trial(f):
+        R = R0.copy()
+        R[contracting] = np.clip(1.0 - f * (1.0 - R0[contracting]), 0.02, 1.0)
+        d, o = comp.compare(comp.simulate(R), restart=True)
+        mm = dict(_match(comp, comp.last_sim, d, o), factor=float(f))
+        if mm["relative_residual"] < best["m"]["relative_residual"]:
+            best["m"] = mm
+        return mm["relative_residual"]
+
+    if contracting.any():
+        minimize_scalar(trial, bounds=FACTORS, method="bounded", options={"xatol": 0.02, "maxiter": 8})
+    return best["m"]
 
 
 def _per_cell(design, dev, owner):
@@ -263,12 +442,39 @@ def diagnose_shape(design, measured, *, align="auto", correct=True, options=None
         measured_path = str(measured)
         measured, cells = load_measured(measured, name="measured")
     measured = check_array("measured", measured, shape=(-1, 3), min_size=4)
+    import time
+
+    t0 = time.perf_counter()
+    if align == "correspondence" and measured.shape[0] != design.mesh.n_points:
+        raise GdfeError(f"measured: expected the design's {design.mesh.n_points} vertices in its order for "
+                        f"correspondence alignment, got {measured.shape[0]} points")
+    why = _degenerate(measured, design)
+    if why is not None:
+        return ShapeDiagnosis(
+            design_path=design_path, measured_path=measured_path, method="", n_measured=int(len(measured)),
+            rms_before=float("nan"), rms_after=float("nan"), element_deviation=np.full(design.n_cells, np.nan),
+            regions=[], named=[], corrected_R={}, converged=True, n_simulations=0, transform={},
+            matches=False, match={"residual": None, "size": None, "relative_residual": None, "coverage": None,
+                                  "scale": None, "factor": None, "reasons": [why],
+                                  "seconds": time.perf_counter() - t0})
     regions = design_regions(design) if regions is None else regions
     comp = _Comparer(design, measured, cells, align, opts, from_file=measured_path != "<array>")
     R0 = design.R.copy()
     sim0 = comp.simulate(R0)
     dev, owner = comp.compare(sim0, restart=True)
+    match = _check_match(comp, R0, sim0, dev, owner)
+    match["seconds"] = time.perf_counter() - t0
+    match.pop("ok")
     rms0 = float(np.sqrt(np.mean(dev**2)))
+    if match["reasons"]:
+        return ShapeDiagnosis(
+            design_path=design_path, measured_path=measured_path, method=comp.method,
+            n_measured=int(len(measured)), rms_before=rms0, rms_after=rms0,
+            element_deviation=_per_cell(design, dev, owner), regions=[], named=[], corrected_R={},
+            converged=comp.converged, n_simulations=comp.n_sims,
+            transform={"Q": comp.Q.tolist(), "t": comp.t.tolist()}, matches=False, match=match)
+    if match["factor"] != 1.0:  # the alignment to the nominal shape again
+        dev, owner = comp.compare(sim0, restart=True)
     elem = _per_cell(design, dev, owner)
     table = []
     for name, rc in regions.items():
@@ -292,7 +498,7 @@ def diagnose_shape(design, measured, *, align="auto", correct=True, options=None
         design_path=design_path, measured_path=measured_path, method=comp.method,
         n_measured=int(len(measured)), rms_before=rms0, rms_after=rms_after, element_deviation=elem,
         regions=table, named=named, corrected_R=fitted, converged=comp.converged,
-        n_simulations=comp.n_sims, transform=transform)
+        n_simulations=comp.n_sims, transform=transform, matches=True, match=match)
 
 
 def _fit_regions(comp, regions, names, R0, start, r_span, sweeps=2):
