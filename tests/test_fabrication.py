@@ -294,6 +294,7 @@ def test_print_package_round_trip_and_atomic(tmp_path):
         info = json.loads(zf.read("print.json"))
     assert info["pixel_mm"] == 0.25 and info["dpi"] == pytest.approx(101.6) and info["d_mm"] == 0.33
     assert info["source"]["sha256"] and info["parts"][0]["nx"] == 32 and info["parts"][0]["ny"] == 8
+    assert info["R"] == pytest.approx(float(gdfe.Calibration().ratio(0.33)))  # of the free faces
     designs, _ = read_print_package(pkg)
     np.testing.assert_array_equal(designs["one"].material, des.material)
     np.testing.assert_allclose(designs["one"].R, des.R)

@@ -77,6 +77,20 @@ def test_deviation_per_segment_is_consistent():
     assert max(s["max_mm"] for s in segs) == pytest.approx(dev.max, rel=1e-12)
 
 
+def test_unconverged_check_is_not_measured(tmp_path):
+    from gdfe.fabrication.strips import write_check
+
+    plan = inv.plan_strip(inv.target_from_letter("c"), h=H, R=R, cell=0.25)
+    check = inv.check_strip(plan, width=0.5, ny=1, max_iter=1)
+    assert not check.converged and check.deviation is None
+    with pytest.raises(ValueError, match="result: the solver did not converge"):
+        inv.strip_deviation(plan, check.result)
+    rec = write_check(check, tmp_path, "c")
+    assert rec["deviation"] is None and "not measured" in rec["note"]
+    assert not (tmp_path / "c_deviation.png").exists()
+    assert json.loads((tmp_path / "c_deviation.json").read_text())["converged"] is False
+
+
 def test_sketch_target_and_fig10_agree():
     from studies.fig10_segmentation import EXPECTED_M, PENALTIES
 

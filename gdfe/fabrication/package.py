@@ -50,10 +50,18 @@ def _source_record(source):
     return {"description": str(source)}
 
 
+def _free_ratios(design):
+    """The contraction ratios of a design's free faces (rigid cells have none)."""
+    from gdfe.design import Material
+
+    free = design.material != Material.RIGID
+    return np.unique(design.R[free] if free.any() else design.R)
+
+
 def _film_table(design, d, K):
     """The ``[film]`` table of a part's design file: its one contraction ratio R (so that the file
     reads back the very design), else d and K for Eq. 3."""
-    R = np.unique(design.R)
+    R = _free_ratios(design)
     film = {"h": float(design.h)}
     if R.size == 1:
         film["R"] = float(R[0])
@@ -123,7 +131,7 @@ def write_print_package(path, designs, *, d=None, K=None, source=None, extra=Non
         toml += [f"{k} = {_toml_value(v)}" for k, v in names.items()]
         names["design"] = f"{name}.toml"
         files[names["design"]] = ("\n".join(toml) + "\n").encode()
-        info_R.update(np.unique(des.R).round(12).tolist())
+        info_R.update(_free_ratios(des).round(12).tolist())
         parts.append({"name": name, "files": names, **masks.summary()})
     first = next(iter(designs.values()))
     info = {"format": PACKAGE_FORMAT, "version": 1, "pixel_mm": pixel, "dpi": 25.4 / pixel,
