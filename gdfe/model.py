@@ -391,32 +391,59 @@ class DeformationModel:
                                 "design's nominal d; give d")
             R[free] = 1.0 - self.contraction(float(d0), design.h)
         out = dataclasses.replace(design, R=R, contraction=None, model=self)
-        if "saturation" in self.mechanisms or "hinge_length" in self.mechanisms:
+        if self.geometric:
             out = dataclasses.replace(out, contraction=self._geometric(out))
         return out
+
+    @property
+    def geometric(self) -> bool:
+        """Whether a mechanism needs the design's layout (``saturation``, ``hinge_length``)."""
+        return "saturation" in self.mechanisms or "hinge_length" in self.mechanisms
 
     def _geometric(self, design):
         """Per-face contraction ``(m, 2)`` after ``saturation`` and ``hinge_length``."""
         top, bottom = design.face_contraction()
         grid = _ColumnGrid(design)
+        faces = [grid.to_cells(c2) for c2 in
+                 self.contraction_grid(grid.to_grid(top), grid.to_grid(bottom), grid.present, grid.dx, grid.dy,
+                                       design.h)]
+        return np.column_stack(faces)
+
+    def contraction_grid(self, top, bottom, present, dx, dy, h):
+        """The geometric mechanisms on an in-plane grid of contractions (stage 3).
+
+        Parameters
+        ----------
+        top, bottom : (nx, ny) float arrays
+            Contraction ``1 - R`` of each face of every column (0 where coated), from
+            :meth:`contraction`.
+        present : (nx, ny) bool array
+            Where the film is.
+        dx, dy : float [mm]
+            Column size.
+        h : float [mm]
+
+        Returns
+        -------
+        top, bottom : (nx, ny) float arrays
+        """
         lam = self.value("lambda") if "hinge_length" in self.mechanisms else 0.0
         faces = []
-        for c in (top, bottom):
-            c2 = grid.to_grid(c)
-            free = grid.present & (c2 > 0)
-            coated = grid.present & ~free
+        for c2 in (np.asarray(top, float), np.asarray(bottom, float)):
+            free = present & (c2 > 0)
+            coated = present & ~free
             if "saturation" in self.mechanisms:
-                w = np.minimum(_run_width(free, coated, 0) * grid.dx, _run_width(free, coated, 1) * grid.dy)
+                w = np.minimum(_run_width(free, coated, 0) * dx, _run_width(free, coated, 1) * dy)
                 capped = free & np.isfinite(w) & (w + lam > 0)
-                alpha = np.where(capped, c2 * np.where(capped, w + lam, 0.0) / design.h, 0.0)
+                alpha = np.where(capped, c2 * np.where(capped, w + lam, 0.0) / h, 0.0)
                 am = self.value("alpha_max")
                 s = np.ones_like(c2)
                 s[capped] = np.tanh(alpha[capped] / am) / (alpha[capped] / am)
                 c2 = c2 * s
             if lam != 0.0:
-                c2 = _spread(c2, free, coated, lam, grid.dx, grid.dy)
-            faces.append(grid.to_cells(c2))
-        return np.column_stack(faces)
+                c2 = _spread(c2, free, coated, lam, dx, dy)
+            faces.append(c2)
+        return faces[0], faces[1]
 
     # -- files ----------------------------------------------------------------------------------
     def as_dict(self):

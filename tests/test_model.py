@@ -233,3 +233,41 @@ def test_design_file_reads_its_model_and_refuses_mixtures(tmp_path):
     (tmp_path / "x.toml").write_text('[film]\nd = 0.33\nmodel = "nope.toml"\n[hinge]\nlength = 1.6\n')
     with pytest.raises(gdfe.GdfeError, match=r"x.toml: \[film\] model: model file not found: .*nope.toml"):
         gdfe.load_design(tmp_path / "x.toml")
+
+
+# -- inverse design with a model ------------------------------------------------------------------
+def test_a_model_without_geometric_mechanisms_plans_by_the_paper_rule_at_its_ratio():
+    from gdfe import inverse as inv
+
+    m = model(mechanisms=("cure_depth",), K=0.3, delta=0.02)
+    a = inv.strip_pattern([(6.0, 3.0), (2.0, 0.0)], model=m, d=0.33)
+    b = inv.strip_pattern([(6.0, 3.0), (2.0, 0.0)], R=float(m.ratio(0.33)))
+    np.testing.assert_array_equal(a.material, b.material)
+    assert a.R == b.R and a.model is m and b.model is None
+
+
+def test_planning_with_a_spreading_model_matches_the_turn_it_simulates():
+    """With hinge_length every block folds wider than printed: the planner takes fewer blocks, and
+    the strip the model folds turns as the planner said."""
+    from gdfe import inverse as inv
+
+    m = model(mechanisms=("hinge_length",), K=0.3706, **{"lambda": 0.3})
+    couples = [(8.0, 4.0)]  # 2 rad
+    plain = inv.strip_pattern(couples, R=float(m.ratio(0.33)), cell=0.125)
+    pat = inv.strip_pattern(couples, model=m, d=0.33, cell=0.125)
+    assert pat.blocks[0] < plain.blocks[0]
+    # the planned turn is within the model's block quantum c (w + lambda) / h of the target
+    c = float(m.contraction(0.33, 0.29))
+    assert abs(pat.angle_printed[0] - 2.0) <= 0.5 * c * (0.125 + 0.3) / 0.29 + 1e-9
+    res = gdfe.inverse.simulate_strip(pat.design(width=0.25, ny=2))
+    assert gdfe.curvature_profile(res)["turn"] == pytest.approx(pat.angle_printed[0], rel=0.03)
+
+
+def test_a_couple_the_model_cannot_fold_is_an_error_naming_it():
+    from gdfe import inverse as inv
+
+    m = model(mechanisms=("hinge_length",), K=0.1, **{"lambda": 0.5})
+    with pytest.raises(gdfe.GdfeError, match=r"couples\[0\]: radius 1 mm turns by 3.*at d = 0.33 mm"):
+        inv.strip_pattern([(3.0, 1.0)], model=m, d=0.33)
+    pat = inv.strip_pattern([(3.0, 1.0)], model=m, d=0.33, clamp=True)
+    assert pat.clamped[0]

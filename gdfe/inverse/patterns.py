@@ -32,6 +32,7 @@ from gdfe._validation import GdfeError, check_array, check_choice, check_number,
 from gdfe.calibration import DEFAULT_H
 from gdfe.design import Material, grid_design
 from gdfe.inverse.couples import Couple, as_couples, check_open_ratio
+from gdfe.model import as_model
 
 __all__ = ["StripPattern", "strip_pattern", "with_hinges", "ROUNDINGS"]
 
@@ -68,6 +69,12 @@ class StripPattern:
         Turning angle of the printed contracting length by Eq. 2, ``(1 - R) L_c_printed / h``.
     clamped : (k,) bool array
         Couples tighter than the film can fold, printed fully contracting instead.
+    model : DeformationModel or None
+        The deformation model the pattern was planned with (then ``R`` is its ratio at
+        ``d`` and ``angle_printed`` the turn the model gives the printed columns, its
+        geometric mechanisms included); None for the paper's rule with a given ``R``.
+    d : float or None [mm]
+        Passive thickness the strip is printed with (for the model).
     """
 
     material: np.ndarray
@@ -84,6 +91,8 @@ class StripPattern:
     angle: np.ndarray
     angle_printed: np.ndarray
     clamped: np.ndarray
+    model: object = None
+    d: float | None = None
 
     @property
     def length(self) -> float:
@@ -124,6 +133,11 @@ class StripPattern:
                    for i in range(len(self.couples))}
         meta = {"kind": "strip", "couples": [[c.L, c.r] for c in self.couples], "R": self.R,
                 "cell_mm": self.cell, "w_min_mm": self.w_min, "rounding": self.rounding}
+        if self.model is not None:
+            meta["d_mm"] = self.d
+            one = (mat == int(Material.CONTRACT_TOP)) | (mat == int(Material.CONTRACT_BOTTOM))
+            return grid_design(mat, h=self.h, pixel=(self.cell, width / ny), nz=nz, isotropy=isotropy,
+                               regions2d=regions, meta=meta, d=np.where(one, self.d, np.nan), model=self.model)
         return grid_design(mat, self.R, h=self.h, pixel=(self.cell, width / ny), nz=nz, isotropy=isotropy,
                            regions2d=regions, meta=meta)
 
@@ -135,7 +149,8 @@ _ROUNDING = {"nearest": lambda x: np.floor(x + 0.5), "floor": np.floor, "ceil": 
 ROUNDINGS = tuple(_ROUNDING)
 
 
-def strip_pattern(couples, h=DEFAULT_H, R=0.7, cell=None, w_min=None, rounding="nearest", clamp=False):
+def strip_pattern(couples, h=DEFAULT_H, R=None, cell=None, w_min=None, rounding="nearest", clamp=False,
+                  model=None, d=None):
     """Contracting and rigid cells along a strip that folds into the curve of the couples.
 
     Each couple gets ``round(L / cell)`` columns. Its contracting length
@@ -168,6 +183,15 @@ def strip_pattern(couples, h=DEFAULT_H, R=0.7, cell=None, w_min=None, rounding="
     clamp : bool
         A couple tighter than the film can fold (``L_c > L``) raises :class:`GdfeError`
         unless ``clamp``, which prints it fully contracting (the maximum curvature, ``(1-R)/h``).
+    model : DeformationModel or path of a model file, optional
+        Plan with this deformation model at passive thickness ``d`` instead of a given ``R``
+        (default ``R`` 0.7, the paper's): ``R`` is the model's at ``d``; where the model has
+        geometric mechanisms (a contraction that spreads past coat edges, a capped fold) the
+        number of blocks of each couple is then chosen so that the turn the model gives the
+        printed columns is closest to the couple's (two sweeps along the strip, since a block
+        spreads into its neighbours).
+    d : float [mm], optional
+        Passive thickness, with ``model``.
 
     Returns
     -------
@@ -175,7 +199,15 @@ def strip_pattern(couples, h=DEFAULT_H, R=0.7, cell=None, w_min=None, rounding="
     """
     couples = as_couples(couples)
     h = check_positive("h", h)
-    R = check_open_ratio(R)
+    model = as_model(model)
+    if model is not None:
+        if R is not None:
+            raise GdfeError("R, model: expected a contraction ratio R or a deformation model, not both")
+        if d is None:
+            raise GdfeError("d: expected the passive thickness [mm] the model gives R from")
+        d = float(check_positive("d", d))
+        R = float(model.ratio(d, h))
+    R = check_open_ratio(0.7 if R is None else R)
     rounding = check_choice("rounding", rounding, ROUNDINGS)
     if w_min is not None:
         w_min = check_number("w_min", w_min, minimum=0.0, include_minimum=False,
@@ -197,6 +229,7 @@ def strip_pattern(couples, h=DEFAULT_H, R=0.7, cell=None, w_min=None, rounding="
     blocks = np.zeros(k, int)
     clamped = np.zeros(k, bool)
     turn_per_block = w * (1.0 - R) / h
+    geometric = model is not None and model.geometric
     debt = 0.0  # target minus printed accumulated turn [rad] ("carry")
     for i, c in enumerate(couples):
         n = max(1, int(round(c.L / cell)))
@@ -210,7 +243,7 @@ def strip_pattern(couples, h=DEFAULT_H, R=0.7, cell=None, w_min=None, rounding="
         col = np.full(n, int(Material.RIGID))
         code = int(Material.CONTRACT_TOP if c.curvature > 0 else Material.CONTRACT_BOTTOM)
         if nb * b > n:
-            if not clamp:
+            if not clamp and not geometric:  # a geometric model may still fold it: decided below
                 rmin = h / (1.0 - R)
                 raise GdfeError(
                     f"couples[{i}]: radius {abs(c.r):g} mm needs a contracting length {L_c[i]:.4g} mm "
@@ -221,10 +254,7 @@ def strip_pattern(couples, h=DEFAULT_H, R=0.7, cell=None, w_min=None, rounding="
             nb = n // b if n >= b else 0
             L_cp[i] = n * cell
         else:
-            for j in range(nb):
-                centre = (j + 0.5) * n / nb
-                s0 = int(np.clip(math.floor(centre - b / 2 + 0.5), 0, n - b))
-                col[s0:s0 + b] = code
+            col = _blocks(n, nb, b, code)
             L_cp[i] = float((col == code).sum() * cell) if nb else 0.0
         blocks[i] = nb
         debt += c.angle - math.copysign(1.0, c.angle) * (1.0 - R) * L_cp[i] / h
@@ -232,10 +262,73 @@ def strip_pattern(couples, h=DEFAULT_H, R=0.7, cell=None, w_min=None, rounding="
         segments.append(np.full(n, i))
     angle = np.array([c.angle for c in couples])
     angle_p = np.sign(angle) * (1.0 - R) * L_cp / h
-    return StripPattern(material=np.concatenate(materials), cell=cell, segment=np.concatenate(segments),
+    material, segment = np.concatenate(materials), np.concatenate(segments)
+    if geometric:
+        material, blocks = _refine_for_model(material, segment, couples, blocks, b, model, R, h, cell)
+        L_cp = np.array([float((material[segment == i] != int(Material.RIGID)).sum() * cell)
+                         for i in range(k)])
+        angle_p = _model_turns(material, segment, k, model, R, h, cell)
+        # a couple that turns less than asked even with all its columns contracting cannot be folded
+        # by this model at this d (an overshoot is the model's block quantum, not a clamp)
+        most = np.zeros(k)
+        for i, cp in enumerate(couples):
+            full = material.copy()
+            full[segment == i] = int(Material.CONTRACT_TOP if cp.curvature > 0 else Material.CONTRACT_BOTTOM)
+            most[i] = abs(_model_turns(full, segment, k, model, R, h, cell)[i]) if cp.angle != 0 else 0.0
+        clamped = np.abs(angle) > most + 1e-9
+        if clamped.any() and not clamp:
+            i = int(np.nonzero(clamped)[0][0])
+            raise GdfeError(f"couples[{i}]: radius {abs(couples[i].r):g} mm turns by {abs(angle[i]):.4g} rad, but the "
+                            f"most model {model.name!r} gives it at d = {d:g} mm is {most[i]:.4g} rad "
+                            f"(its contraction there is {1 - R:.4g}: the film folds no tighter than "
+                            f"h/c = {h / (1 - R):.4g} mm); print a thinner coat, or pass clamp=True")
+    return StripPattern(material=material, cell=cell, segment=segment,
                         couples=couples, h=h, R=R, w_min=w_min, rounding=rounding, L_c=L_c,
                         L_c_printed=L_cp, blocks=blocks, angle=angle, angle_printed=angle_p,
-                        clamped=clamped)
+                        clamped=clamped, model=model, d=d)
+
+
+def _blocks(n, nb, b, code):
+    """``n`` columns with ``nb`` blocks of ``b`` contracting columns spread uniformly (the paper's rule)."""
+    col = np.full(n, int(Material.RIGID))
+    for j in range(nb):
+        centre = (j + 0.5) * n / nb
+        s0 = int(np.clip(math.floor(centre - b / 2 + 0.5), 0, n - b))
+        col[s0:s0 + b] = code
+    return col
+
+
+def _model_turns(material, segment, k, model, R, h, cell):
+    """Turn [rad] the model gives each couple's columns (its geometric mechanisms included)."""
+    c = 1.0 - R
+    top = np.where(material == int(Material.CONTRACT_TOP), c, 0.0)[:, None]
+    bottom = np.where(material == int(Material.CONTRACT_BOTTOM), c, 0.0)[:, None]
+    t2, b2 = model.contraction_grid(top, bottom, np.ones_like(top, bool), cell, cell, h)
+    rate = (t2[:, 0] - b2[:, 0]) / h
+    return np.bincount(segment, rate * cell, k)
+
+
+def _refine_for_model(material, segment, couples, blocks, b, model, R, h, cell, sweeps=2):
+    """Per couple, the number of blocks whose model turn is closest to the couple's."""
+    material = material.copy()
+    blocks = blocks.copy()
+    k = len(couples)
+    for _ in range(sweeps):
+        for i, cp in enumerate(couples):
+            if cp.angle == 0:
+                continue
+            cols = np.nonzero(segment == i)[0]
+            n = cols.size
+            code = int(Material.CONTRACT_TOP if cp.curvature > 0 else Material.CONTRACT_BOTTOM)
+            best = None
+            for nb in range(0, n // b + 1):
+                trial = material.copy()
+                trial[cols] = _blocks(n, nb, b, code)
+                miss = abs(_model_turns(trial, segment, k, model, R, h, cell)[i] - cp.angle)
+                if best is None or miss < best[0] - 1e-12:
+                    best = (miss, nb, trial)
+            _, blocks[i], material = best
+    return material, blocks
 
 
 def with_hinges(couples, turns, h=DEFAULT_H, R=0.7, min_turn=1e-3):

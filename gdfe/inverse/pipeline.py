@@ -30,6 +30,7 @@ from gdfe.calibration import DEFAULT_H
 from gdfe.inverse.couples import Couple, arc_points, as_couples, check_open_ratio
 from gdfe.inverse.patterns import ROUNDINGS, StripPattern, strip_pattern, with_hinges
 from gdfe.inverse.segmentation import SketchFit, fit_sketch
+from gdfe.model import as_model
 
 __all__ = ["Target", "target_from_couples", "target_from_letter", "target_from_sketch", "midline_compensated",
            "StripPlan", "plan_strip", "StripCheck", "check_strip", "TARGET_KINDS"]
@@ -216,8 +217,8 @@ class StripPlan:
                 "clamped": pat.clamped.tolist(), "compensate": self.compensate, "rows": pat.rows()}
 
 
-def plan_strip(target, h=DEFAULT_H, R=0.7, cell=None, w_min=None, rounding="nearest", clamp=False,
-               compensate=False, min_turn=1e-3):
+def plan_strip(target, h=DEFAULT_H, R=None, cell=None, w_min=None, rounding="nearest", clamp=False,
+               compensate=False, min_turn=1e-3, model=None, d=None):
     """The printable strip pattern of a target.
 
     Parameters
@@ -225,8 +226,15 @@ def plan_strip(target, h=DEFAULT_H, R=0.7, cell=None, w_min=None, rounding="near
     target : Target
     h : float [mm]
         Film thickness.
-    R : float
-        Contraction ratio of the free face, strictly between 0 and 1.
+    R : float, optional
+        Contraction ratio of the free face, strictly between 0 and 1 (default 0.7, the
+        paper's), or:
+    model : DeformationModel or path of a model file, optional
+        Plan with this deformation model at passive thickness ``d``
+        (:func:`gdfe.inverse.strip_pattern`): its ratio at ``d`` sizes the hinges and blocks,
+        and its geometric mechanisms choose the blocks of each couple.
+    d : float [mm], optional
+        Passive thickness, with ``model``.
     cell, w_min, rounding, clamp :
         See :func:`gdfe.inverse.strip_pattern` (the paper's rule: ``rounding="nearest"``).
     compensate : bool
@@ -241,9 +249,18 @@ def plan_strip(target, h=DEFAULT_H, R=0.7, cell=None, w_min=None, rounding="near
     if not isinstance(target, Target):
         raise GdfeError(f"target: expected a gdfe.inverse.Target, got {type(target).__name__}")
     h = check_positive("h", h)
-    R = check_open_ratio(R)
+    model = as_model(model)
+    if model is not None:
+        if R is not None:
+            raise GdfeError("R, model: expected a contraction ratio R or a deformation model, not both")
+        if d is None:
+            raise GdfeError("d: expected the passive thickness [mm] the model gives R from")
+        R_plan = float(model.ratio(check_positive("d", d), h))
+    else:
+        R_plan = 0.7 if R is None else R
+    R_plan = check_open_ratio(R_plan)
     check_choice("rounding", rounding, ROUNDINGS)
-    printed = with_hinges(target.couples, target.turns, h=h, R=R, min_turn=min_turn)
+    printed = with_hinges(target.couples, target.turns, h=h, R=R_plan, min_turn=min_turn)
     source, j = [], 0
     for c in printed:  # with_hinges keeps the target's couples and inserts new ones for the turns
         if j < len(target.couples) and c is target.couples[j]:
@@ -253,8 +270,12 @@ def plan_strip(target, h=DEFAULT_H, R=0.7, cell=None, w_min=None, rounding="near
             source.append(-1)
     if compensate:
         printed = midline_compensated(printed, h)
-    pattern = strip_pattern(printed, h=h, R=R, cell=cell, w_min=w_min, rounding=rounding, clamp=clamp)
-    return StripPlan(target=target, printed=printed, source=np.array(source, int), pattern=pattern, h=h, R=R,
+    if model is not None:
+        pattern = strip_pattern(printed, h=h, cell=cell, w_min=w_min, rounding=rounding, clamp=clamp,
+                                model=model, d=d)
+    else:
+        pattern = strip_pattern(printed, h=h, R=R_plan, cell=cell, w_min=w_min, rounding=rounding, clamp=clamp)
+    return StripPlan(target=target, printed=printed, source=np.array(source, int), pattern=pattern, h=h, R=R_plan,
                      compensate=bool(compensate))
 
 
