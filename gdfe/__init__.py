@@ -14,7 +14,8 @@ from gdfe.design import Design, Material, from_masks, from_rows, grid_design, hi
 from gdfe.measure import curvature_profile, fold_angle, rigid_align, shape_distance
 from gdfe.mesh import HexMesh, sheet_mesh
 from gdfe.model import DeformationModel, load_model, paper_model
-from gdfe.solver import ConvergenceError, Result, Solver, energy, rest_shapes, simulate, system_matrix
+from gdfe.solver import (ConvergenceError, Penetration, Result, Solver, check_penetration, energy, rest_shapes,
+                         simulate, system_matrix)
 
 
 __all__ = [
@@ -26,5 +27,6 @@ __all__ = [
     "HexMesh", "sheet_mesh",
     "DeformationModel", "load_model", "paper_model",
     "ConvergenceError", "Result", "Solver", "energy", "rest_shapes", "simulate", "system_matrix",
+    "Penetration", "check_penetration",
     "__version__",
 ]

@@ -9,7 +9,8 @@ import sys
 
 from gdfe.io import json_default
 
-__all__ = ["emit", "solver_args", "solve", "write_outputs", "exit_status", "scheduler_arg", "using_scheduler"]
+__all__ = ["emit", "solver_args", "solve", "write_outputs", "exit_status", "scheduler_arg", "using_scheduler",
+           "contact_fields", "contact_text"]
 
 
 def emit(obj, as_json: bool, text: str) -> None:
@@ -56,6 +57,15 @@ def solver_args(p, defaults_from_file=False):
     p.add_argument("--steps", type=int, default=d, help="frames of the contraction ramp (default 1)")
     p.add_argument("--tol", type=float, default=None, help="residual tolerance (default 1e-7, in units of h)")
     p.add_argument("--max-iter", type=int, default=None, help="iteration limit per frame")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--contact", dest="contact", action="store_const", const="on", default=None,
+                   help="solve with self-contact, so the film never passes through itself (needs the IPC "
+                        "Toolkit: pip install 'gdfe[contact]'); default: contact only where the contact-free "
+                        "solve penetrates itself")
+    g.add_argument("--no-contact", dest="contact", action="store_const", const="off",
+                   help="solve without self-contact (the result is still checked for self-penetration)")
+    p.add_argument("--allow-penetration", action="store_true",
+                   help="exit with status 0 even when the result passes through itself")
 
 
 def solve(design, args, options=None):
@@ -63,7 +73,7 @@ def solve(design, args, options=None):
     import gdfe
 
     opts = dict(options or {})
-    for key in ("method", "steps", "tol", "max_iter"):
+    for key in ("method", "steps", "tol", "max_iter", "contact"):
         v = getattr(args, key, None)
         if v is not None:
             opts[key] = v
@@ -81,10 +91,35 @@ def write_outputs(result, out, name, summary):
     return {"pvd": str(pvd), "png": str(png), "json": str(out / "result.json")}
 
 
-def exit_status(res):
-    """0 for a converged result; 3, with a message, for one that is not."""
+def contact_fields(res):
+    """The self-contact keys of a command's JSON: ``penetration_mm`` (0 when none), ``contact`` (used or not) and details."""
+    summary = res.summary()
+    return {k: summary[k] for k in ("penetration_mm", "contact", "penetration", "contact_info") if k in summary}
+
+
+def contact_text(res):
+    """One line on self-contact and self-penetration for a command's text output."""
+    rep = res.contact
+    how = (f"with self-contact (gap {rep.dhat_mm:.3g} mm, {rep.pairs} surface pairs within it)" if rep.used
+           else "without self-contact")
+    return f"  {how}: {res.penetration.text()}"
+
+
+def exit_status(res, allow_penetration=False):
+    """0 for a converged result free of self-penetration; 3 (not converged) or 4 (it penetrates itself), with a message."""
     if not res.converged:
         print(f"gdfe: error: the solver did not converge (residual {res.residual:.3g} after "
               f"{res.iterations} iterations); raise --max-iter or check the design", file=sys.stderr)
         return 3
+    if res.penetrates and not allow_penetration:
+        depth = max(p.depth_mm for p in res.frame_penetration)
+        if res.contact.used:
+            hint = "the contact solve should prevent this: please report it"
+        elif not res.contact.available:
+            hint = "install the IPC Toolkit for self-contact (pip install 'gdfe[contact]') and rerun"
+        else:
+            hint = "rerun with --contact"
+        print(f"gdfe: error: the simulated film passes through itself ({depth:.3g} mm deep); {hint}, or pass "
+              f"--allow-penetration to accept it", file=sys.stderr)
+        return 4
     return 0

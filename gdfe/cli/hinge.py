@@ -7,7 +7,7 @@ from pathlib import Path
 
 from gdfe import paper
 from gdfe._validation import GdfeError, check_int
-from gdfe.cli._common import emit, exit_status, solve, solver_args, write_outputs
+from gdfe.cli._common import contact_fields, contact_text, emit, exit_status, solve, solver_args, write_outputs
 
 __all__ = ["register", "run"]
 
@@ -69,6 +69,7 @@ def run(args):
     else:
         ref = out["alpha_eq1_rad"] if out["alpha_eq1_rad"] is not None else out["alpha_eq2_rad"]
     out["error_rad"] = alpha - ref
+    out.update(contact_fields(res))
     if args.out:
         out["title"] = f"hinge L={args.length:g} mm, alpha={alpha:.4f} rad"
         out["files"] = write_outputs(res, args.out, "hinge", out)
@@ -80,7 +81,8 @@ def run(args):
                if out["alpha_eq1_rad"] is not None else "")
             + f"  Eq. 2 (1-R)L/h   {out['alpha_eq2_rad']:.4f} rad\n"
             f"  {'converged' if res.converged else 'NOT CONVERGED'} in {res.iterations} iterations "
-            f"(residual {res.residual:.1e}), {res.seconds:.2f} s, {design.n_cells} elements"
+            f"(residual {res.residual:.1e}), {res.seconds:.2f} s, {design.n_cells} elements\n"
+            + contact_text(res)
             + (f"\n  wrote {args.out}/hinge.pvd (open in ParaView), hinge.png, result.json" if args.out else ""))
     emit(out, args.json, text)
-    return exit_status(res)
+    return exit_status(res, allow_penetration=args.allow_penetration)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gdfe.cli._common import emit, exit_status, solve, solver_args, write_outputs
+from gdfe.cli._common import contact_text, emit, exit_status, solve, solver_args, write_outputs
 
 __all__ = ["register", "run"]
 
@@ -68,5 +68,6 @@ def run(args):
             f"{summary['files']['json']}"
             + (f"\n  exported {', '.join(str(v) for v in exported.values())}" if exported else "")
             + ("\n  not exported: the solver did not converge" if args.export and not res.converged else ""))
+    text += "\n" + contact_text(res)
     emit(summary, args.json, text)
-    return exit_status(res)
+    return exit_status(res, allow_penetration=args.allow_penetration)

@@ -17,19 +17,27 @@ the right way, or on large sheets from a coarsened design's solution
 (:mod:`gdfe.solver.starts`). Every method stops at a fixed point of the paper's
 alternation, and reports the residual of its plain step.
 
+Self-contact (``contact=`` of :func:`simulate`): a barrier on the film's boundary surface in
+the Newton energy and collision-free steps (:mod:`gdfe.solver.contact`, with the IPC
+Toolkit), and the penetration check every result carries
+(:mod:`gdfe.solver.penetration`, NumPy and SciPy only).
+
 Modules: :mod:`~gdfe.solver.linalg` (sparse factorisation backends),
 :mod:`~gdfe.solver.energy` (the energy, rest shapes, rotations, the two steps),
 :mod:`~gdfe.solver.newton`, :mod:`~gdfe.solver.alternation`,
 :mod:`~gdfe.solver.linearised`, :mod:`~gdfe.solver.methods` (:class:`Solver`),
-:mod:`~gdfe.solver.starts`, :mod:`~gdfe.solver.simulation` (:func:`simulate`).
+:mod:`~gdfe.solver.starts`, :mod:`~gdfe.solver.contact`, :mod:`~gdfe.solver.penetration`,
+:mod:`~gdfe.solver.simulation` (:func:`simulate`).
 """
 
+from gdfe.solver.contact import CONTACT_MODES, Contact, ContactReport, contact_available, default_dhat
 from gdfe.solver.energy import D8, Assembly, Orientation, RestState, SolveStats, energy, rest_shapes, system_matrix
 from gdfe.solver.linalg import FACTOR_BACKENDS, factor_backend, factorise
 from gdfe.solver.linearised import DIRECT_START_CELLS
 from gdfe.solver.methods import AUTO_NEWTON_CELLS, METHODS, Solver, auto_method
 from gdfe.solver.newton import ENERGY_ROUNDOFF, MU_MIN, STEP_TOL_FACTOR
-from gdfe.solver.simulation import INITS, MULTILEVEL_CELLS, ConvergenceError, Result, simulate
+from gdfe.solver.penetration import Penetration, PenetrationCheck, check_penetration
+from gdfe.solver.simulation import CONTACT_LEVELS, INITS, MULTILEVEL_CELLS, ConvergenceError, Result, simulate
 from gdfe.solver.starts import MULTILEVEL_COARSEST, MULTILEVEL_TOL
 
 
@@ -44,4 +52,6 @@ __all__ = [
     "Orientation", "Assembly", "RestState", "SolveStats",
     "AUTO_NEWTON_CELLS", "DIRECT_START_CELLS", "MULTILEVEL_CELLS", "MULTILEVEL_COARSEST", "MULTILEVEL_TOL",
     "INITS", "FACTOR_BACKENDS", "MU_MIN", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "D8",
+    "CONTACT_MODES", "CONTACT_LEVELS", "Contact", "ContactReport", "contact_available", "default_dhat",
+    "Penetration", "PenetrationCheck", "check_penetration",
 ]

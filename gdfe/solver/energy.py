@@ -260,6 +260,10 @@ class SolveStats:
         Energy [mm^5] of each accepted iterate, then of ``points``.
     cg_iterations : int
         Conjugate-gradient iterations of ``method="newton-cg"`` (0 for the others).
+    contact_pairs : int
+        Surface pairs within the contact gap at ``points`` (0 without contact).
+    contact_energy : float
+        The contact barrier's part of the last energy [mm^5] (0 without contact).
     """
 
     points: np.ndarray
@@ -268,6 +272,8 @@ class SolveStats:
     residual: float
     energies: list
     cg_iterations: int = 0
+    contact_pairs: int = 0
+    contact_energy: float = 0.0
 
 
 class LocalGlobal:

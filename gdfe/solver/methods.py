@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import functools
 
-from gdfe._validation import check_array, check_choice, check_int, check_number
+from gdfe._validation import GdfeError, check_array, check_choice, check_instance, check_int, check_number
 from gdfe.solver.alternation import solve_alternation
+from gdfe.solver.contact import Contact
 from gdfe.solver.energy import LocalGlobal, SolveStats
 from gdfe.solver.linearised import linearised_start
 from gdfe.solver.newton import ReducedHessian, cg_directions, factorised_directions, solve_newton
@@ -85,8 +86,9 @@ class Solver(LocalGlobal):
         V = check_array("V", V, shape=(self.n, 3))
         return linearised_start(self, self.reduced_hessian, V, activation)
 
-    def solve(self, V0, activation=1.0, method="newton", tol=1e-7, max_iter=200, history=6) -> SolveStats:
-        """Minimise Eq. 5 from ``V0``.
+    def solve(self, V0, activation=1.0, method="newton", tol=1e-7, max_iter=200, history=6,
+              contact=None) -> SolveStats:
+        """Minimise Eq. 5 from ``V0`` (plus the self-contact barrier, with ``contact``).
 
         Parameters
         ----------
@@ -102,6 +104,9 @@ class Solver(LocalGlobal):
             Limit on the assembly steps.
         history : int
             Anderson history length.
+        contact : gdfe.solver.contact.Contact, optional
+            Self-contact of this design (Newton methods only); ``V0`` must then be free of
+            self-intersection. See :func:`gdfe.solver.newton.solve_newton`.
 
         Returns
         -------
@@ -114,11 +119,17 @@ class Solver(LocalGlobal):
         history = check_int("history", history)
         if method == "auto":
             method = auto_method(self.design)
+        if contact is not None:
+            check_instance("contact", contact, Contact)
+            if not method.startswith("newton"):
+                raise GdfeError(f"contact: the contact solve needs a Newton method ('auto', 'newton' or "
+                                f"'newton-cg'), got method={method!r}")
         if method == "newton":
             directions = factorised_directions(self.reduced_hessian, self.rest(activation))
-            return solve_newton(self, V0, activation, tol, max_iter, directions)
+            return solve_newton(self, V0, activation, tol, max_iter, directions, contact=contact)
         if method == "newton-cg":
             directions = cg_directions(self.reduced_hessian, self.rest(activation))
-            return solve_newton(self, V0, activation, tol, max_iter, directions, alphas=(1.0, 0.5, 0.25))
+            return solve_newton(self, V0, activation, tol, max_iter, directions, alphas=(1.0, 0.5, 0.25),
+                                contact=contact)
         return solve_alternation(self, V0, activation, tol, max_iter, anderson=method == "anderson",
                                  history=history)

@@ -18,10 +18,11 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
+from gdfe._validation import GdfeError
 from gdfe.solver.energy import SolveStats
 from gdfe.solver.linalg import factorise
 
-__all__ = ["MU_MIN", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "ReducedHessian", "CoarseSpace", "pcg",
+__all__ = ["MU_MIN", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "CONTACT_ALPHAS", "CONTACT_EXACT_RES", "ReducedHessian", "CoarseSpace", "pcg",
            "solve_newton", "factorised_directions", "cg_directions"]
 
 log = logging.getLogger(__name__)
@@ -34,6 +35,12 @@ MU_MIN = 1e-6
 STEP_TOL_FACTOR = 10.0
 #: Relative rise of the energy a full Newton step may cause and still be taken (round-off).
 ENERGY_ROUNDOFF = 1e-13
+#: Fractions of the collision-free step tried with contact, in order (see :func:`solve_newton`).
+CONTACT_ALPHAS = (1.0, 0.5, 0.25, 0.125)
+#: Below this residual (units of h) the contact barrier's Hessian enters the Newton system as
+#: it is, not projected pair by pair onto the positive semi-definite cone: near a solution the
+#: whole Hessian is positive definite, and the projected one only converges linearly.
+CONTACT_EXACT_RES = 1e-2
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -195,7 +202,7 @@ class ReducedHessian:
         J, _ = self.jacobian(RG)
         return (2.0 * (1.0 + mu)) * self.L3 - 2.0 * (J.T @ J)
 
-    def operator(self, RG, mu):
+    def operator(self, RG, mu, extra=None):
         """Hessian product and preconditioner for the blocks ``RG`` and damping ``mu``.
 
         The preconditioner combines the exact inverse of the (scaled) n x n system for
@@ -203,6 +210,9 @@ class ReducedHessian:
         symmetrically, coarse - fine - coarse (:attr:`two_level` ``"multiplicative"``,
         which halves the CG iterations on the mask sheets for one more Hessian product),
         or summed (``"additive"``).
+
+        ``extra`` (3n x 3n, vertex-major, positive semi-definite; the contact barrier's
+        Hessian) is added to the Hessian and to the coarse matrix.
 
         Returns
         -------
@@ -216,6 +226,8 @@ class ReducedHessian:
         J, Jt = self.jacobian(RG)
         JZ = (J @ cs.Z3).tocsc()
         Hc = (2.0 * (1.0 + max(mu, MU_MIN))) * cs.Lc3 - 2.0 * (JZ.T @ JZ)
+        if extra is not None:
+            Hc = (Hc + cs.Z3.T @ extra @ cs.Z3).tocsc()
         try:
             fc = factorise(Hc)
         except RuntimeError:  # SuperLU: exactly singular
@@ -226,6 +238,8 @@ class ReducedHessian:
 
         def apply_H(v):
             out = scale * (L @ v) - 2.0 * (Jt @ (J @ v.ravel())).reshape(-1, 3)
+            if extra is not None:
+                out += (extra @ v.ravel()).reshape(-1, 3)
             out[pin] = 0.0
             return out
 
@@ -283,15 +297,18 @@ def pcg(apply_H, apply_P, rhs, rtol, max_iter):
 def factorised_directions(hessian, rest):
     """Newton steps of ``method="newton"``: the 3n x 3n Hessian factorised, per damping ``mu``.
 
-    Returns ``directions(Q, S, grad, res)``, see :func:`solve_newton`.
+    Returns ``directions(Q, S, grad, res, extra=None)``, see :func:`solve_newton`.
     """
     steps = hessian.steps
     fdof = (3 * steps.free[:, None] + np.arange(3)).ravel()
     n = steps.n
 
-    def directions(Q, S, grad, res):
+    def directions(Q, S, grad, res, extra=None):
         def step(mu):
-            H = hessian.matrix(Q, S, rest, mu=mu)[fdof][:, fdof]
+            H = hessian.matrix(Q, S, rest, mu=mu)
+            if extra is not None:
+                H = H + extra
+            H = H[fdof][:, fdof]
             out = np.zeros(3 * n)
             try:
                 out[fdof] = factorise(H).solve(-grad.ravel()[fdof])
@@ -313,14 +330,14 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200):
     relative (preconditioned) residual ``cg_rtol``, by default the square root of the
     plain step's residual clipped to [1e-3, 0.1]: loose far from the solution, tight near it.
 
-    Returns ``directions(Q, S, grad, res)``, see :func:`solve_newton`.
+    Returns ``directions(Q, S, grad, res, extra=None)``, see :func:`solve_newton`.
     """
-    def directions(Q, S, grad, res):
+    def directions(Q, S, grad, res, extra=None):
         RG = hessian.blocks(Q, S, rest, floor=floor)
         rtol = cg_rtol if cg_rtol is not None else min(0.1, max(1e-3, np.sqrt(res)))
 
         def step(mu):
-            ops = hessian.operator(RG, mu)
+            ops = hessian.operator(RG, mu, extra)
             if ops is None:
                 return None, 0
             x, k = pcg(*ops, -grad, rtol, cg_max)
@@ -330,31 +347,50 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200):
     return directions
 
 
-def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)):
+def _solve_free(steps, F):
+    """``L_ff^{-1} F`` on the free vertices (zero at the pinned one), ``(n, 3)``."""
+    out = np.zeros_like(F)
+    out[steps.free] = steps.factor.solve(np.asfortranarray(F[steps.free]))
+    return out
+
+
+def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,), contact=None):
     """Damped Newton on the rotation-reduced energy; the outer loop of both Newton methods.
 
     Parameters
     ----------
     steps : LocalGlobal
     V0 : (n, 3) float array [mm]
-        Start; its pinned vertex stays where it is.
+        Start; its pinned vertex stays where it is. With ``contact`` it must be free of
+        self-intersection (:meth:`gdfe.solver.contact.Contact.is_clear`).
     activation : float
     tol : float
         Tolerance (units of h), see below.
     max_iter : int
         Limit on the assembly steps.
     directions : callable
-        ``directions(Q, S, grad, res)`` returns a function of the damping ``mu`` giving
-        ``(step, cg_iterations)``: the Newton step as an ``(n, 3)`` array (None when it
-        cannot be computed) and the CG iterations it took.
+        ``directions(Q, S, grad, res, extra=None)`` returns a function of the damping
+        ``mu`` giving ``(step, cg_iterations)``: the Newton step as an ``(n, 3)`` array
+        (None when it cannot be computed) and the CG iterations it took; ``extra`` is a
+        positive semi-definite 3n x 3n matrix added to the Hessian (the contact barrier's).
     alphas : tuple of float
         Step lengths tried, in order; the first that lowers the energy is taken and
         ``mu`` shrinks (a full step) or doubles (a shortened one); when none does, ``mu``
         grows eightfold and the step is recomputed.
+    contact : gdfe.solver.contact.Contact, optional
+        Self-contact: the barrier is added to the energy, its gradient to the gradient and
+        its Hessian to the Newton system; every step is first cut to the collision-free
+        fraction of it (:meth:`~gdfe.solver.contact.Contact.max_step`), then shortened by
+        :data:`CONTACT_ALPHAS` until the energy with the barrier falls. The barrier's
+        Hessian is projected pair by pair onto the positive semi-definite cone while the
+        residual is above :data:`CONTACT_EXACT_RES`, and enters as it is below.
 
     Returns
     -------
     SolveStats
+        Without contact, ``points`` is the plain step from the last iterate; with
+        contact, the last iterate itself (the plain step ignores the barrier and could
+        cross a face), and the residual is the plain step's with the contact forces held.
 
     Notes
     -----
@@ -364,27 +400,49 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
     stiffness; the Newton step does not. The estimate is the last step's length ``|s_k|``,
     or ``|s_k| theta / (1 - theta)`` with the contraction ``theta = |s_k| / |s_k-1|`` of
     two full steps when that is smaller (the bound of a sequence contracting by ``theta``).
+    With contact, the plain step's move is ``L^{-1} (b - L V - g_B / 2)``: the assembly
+    step with the barrier's force ``g_B`` held at its value at ``V``.
     """
     V = np.array(V0, float)
     Vp = V[steps.pin].copy()
     scale = steps.design.h
     o = steps.orient(V, activation)
     Q, E, S = o.Q, o.energy, o.S
+    state = None
+    if contact is not None:
+        state = contact.evaluate(V)
+        if not np.isfinite(state.energy):
+            raise GdfeError("V0: the start crosses or touches itself; the contact solve needs a start free "
+                            "of self-intersection")
+        E = E + state.energy
     energies = [E]
     mu = 1e-3
     it = cg = 0
+    stalled = False
     error = prev = np.inf  # estimated distance to the solution; last full step, in units of h
     while True:
         plain = steps.assemble(Q, Vp, activation)  # the plain step from V
         G = plain.V
         it += 1
-        res = float(np.abs(G - V).max() / scale)
+        if contact is None:
+            res = float(np.abs(G - V).max() / scale)
+        else:
+            gB = contact.gradient(state)
+            move = G - V
+            if state.active:
+                move = move - 0.5 * _solve_free(steps, gB)
+            res = float(np.abs(move).max() / scale)
         if (res <= tol and error <= STEP_TOL_FACTOR * tol) or it >= max_iter:
             break
         t0 = time.perf_counter()
         grad = 2.0 * (steps.L @ V - plain.b)
-        grad[steps.pin] = 0.0
-        direction = directions(Q, S, grad, res)
+        if contact is None:
+            grad[steps.pin] = 0.0
+            direction = directions(Q, S, grad, res)
+        else:
+            grad += gB
+            grad[steps.pin] = 0.0
+            direction = directions(Q, S, grad, res, extra=contact.hessian(state, project=res > CONTACT_EXACT_RES))
         steps.timings["newton"] = steps.timings.get("newton", 0.0) + time.perf_counter() - t0
         for _ in range(20):
             t0 = time.perf_counter()
@@ -393,14 +451,24 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
             steps.timings["newton"] += time.perf_counter() - t0
             taken = None
             if step is not None and np.any(step):
-                for alpha in alphas:
+                if contact is None:
+                    trials = alphas
+                else:
+                    amax = contact.max_step(V, V + step, state)
+                    trials = tuple(amax * a for a in CONTACT_ALPHAS) if amax > 0 else ()
+                for alpha in trials:
                     Vt = V + alpha * step
                     trial = steps.orient(Vt, activation)
                     Et = trial.energy
+                    if contact is not None:
+                        trial_state = contact.evaluate(Vt)
+                        Et = Et + trial_state.energy
                     # a full step may raise the energy by its round-off: near the
                     # solution every step changes it by less than that
                     if Et < E or (alpha == 1.0 and Et <= E * (1.0 + ENERGY_ROUNDOFF)):
                         V, Q, E, S, taken = Vt, trial.Q, Et, trial.S, alpha
+                        if contact is not None:
+                            state = trial_state
                         break
             if taken is not None:
                 moved = float(np.abs(taken * step).max() / scale)
@@ -412,16 +480,39 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
                     prev = moved
                 else:
                     prev = np.inf
-                mu = max(mu / 4.0, MU_MIN) if taken == 1.0 else 2.0 * mu
+                # a step cut short by collision detection, not by the energy, keeps the damping
+                full = taken == 1.0 or (contact is not None and taken == trials[0])
+                mu = max(mu / 4.0, MU_MIN) if full else 2.0 * mu
                 break
             mu *= 8.0
         else:  # no descent even with heavy damping: take the plain step
-            V = G
-            o = steps.orient(V, activation)
-            Q, E, S = o.Q, o.energy, o.S
-            error, prev = res, np.inf
+            if contact is None:
+                V = G
+                o = steps.orient(V, activation)
+                Q, E, S = o.Q, o.energy, o.S
+                error, prev = res, np.inf
+            else:  # the plain step with the contact forces held, cut by collision detection
+                target = V + move
+                amax = contact.max_step(V, target, state)
+                for alpha in tuple(amax * a for a in CONTACT_ALPHAS) if amax > 0 else ():
+                    Vt = V + alpha * move
+                    trial, trial_state = steps.orient(Vt, activation), contact.evaluate(Vt)
+                    if trial.energy + trial_state.energy < E:
+                        V, Q, S, state = Vt, trial.Q, trial.S, trial_state
+                        E = trial.energy + trial_state.energy
+                        error, prev = res, np.inf
+                        break
+                else:
+                    stalled = True
+                    log.warning("newton with contact: no step lowers the energy at residual %.3e", res)
+                    energies.append(E)
+                    break
         log.debug("newton %d: residual %.3e, error estimate %.3e, energy %.6e, mu %.1e",
                   it, res, error, E, mu)
         energies.append(E)
-    return SolveStats(points=G, converged=res <= tol, iterations=it, residual=res,
-                      energies=energies + [steps.orient(G, activation).energy], cg_iterations=cg)
+    if contact is None:
+        return SolveStats(points=G, converged=res <= tol, iterations=it, residual=res,
+                          energies=energies + [steps.orient(G, activation).energy], cg_iterations=cg)
+    return SolveStats(points=V, converged=res <= tol and not stalled, iterations=it, residual=res,
+                      energies=energies + [E], cg_iterations=cg, contact_pairs=state.active,
+                      contact_energy=state.energy)

@@ -13,13 +13,16 @@ import time
 
 import numpy as np
 
-from gdfe._validation import check_array, check_choice, check_instance, check_int
+from gdfe._validation import GdfeError, check_array, check_choice, check_instance, check_int, check_positive
 from gdfe.design import Design
 from gdfe.model import as_model
+from gdfe.solver.contact import CONTACT_MODES, Contact, ContactReport, contact_available
 from gdfe.solver.methods import METHODS, Solver, auto_method, check_tol
+from gdfe.solver.penetration import Penetration, PenetrationCheck
 from gdfe.solver.starts import flat_start, multilevel_start
 
-__all__ = ["Result", "ConvergenceError", "simulate", "INITS", "MULTILEVEL_CELLS"]
+__all__ = ["Result", "ConvergenceError", "simulate", "INITS", "MULTILEVEL_CELLS", "CONTACT_LEVELS",
+           "CONTACT_LEVEL_TOL"]
 
 log = logging.getLogger(__name__)
 
@@ -27,6 +30,12 @@ log = logging.getLogger(__name__)
 INITS = ("auto", "linear", "multilevel", "flat")
 #: ``init="auto"`` starts designs above this many cells from a coarsened copy.
 MULTILEVEL_CELLS = 20_000
+#: A contact solve follows the contraction through at least this many activation levels
+#: (the frames count; with fewer frames, levels are added between them): where the film
+#: meets itself the shape depends on the path, and the film contracts gradually.
+CONTACT_LEVELS = 4
+#: Tolerance (units of h) of the added levels: their shapes are only the next level's start.
+CONTACT_LEVEL_TOL = 1e-2
 
 
 class ConvergenceError(RuntimeError):
@@ -66,7 +75,16 @@ class Result:
         The method that ran: ``"newton"``, ``"newton-cg"``, ``"anderson"`` or ``"plain"``.
     timings : dict
         Seconds spent in the factorisation, the orientation and assembly steps, the
-        Newton steps (``"newton"``) and the multilevel start (``"start"``).
+        Newton steps (``"newton"``), the multilevel start (``"start"``), the penetration
+        checks (``"penetration_check"``), and with contact the barrier (``"barrier"``),
+        collision detection (``"ccd"``) and the contact-free solve that came first
+        (``"contact_free_solve"``, ``contact="auto"``).
+    penetration : Penetration
+        The penetration check of the final shape (:func:`gdfe.solver.check_penetration`).
+    contact : ContactReport
+        Whether the solve used self-contact, why, and with which gap.
+    frame_penetration : list of Penetration
+        The check of every frame after the flat print.
     """
 
     design: Design
@@ -82,6 +100,14 @@ class Result:
     frame_iterations: list
     method: str
     timings: dict
+    penetration: Penetration = None
+    contact: ContactReport = None
+    frame_penetration: list = dataclasses.field(default_factory=list)
+
+    @property
+    def penetrates(self) -> bool:
+        """Whether any frame passes through itself (:attr:`frame_penetration`)."""
+        return any(p.found for p in self.frame_penetration)
 
     def check(self):
         """Raise :class:`ConvergenceError` unless the solve converged; return self."""
@@ -92,15 +118,31 @@ class Result:
         return self
 
     def summary(self) -> dict:
-        return {"converged": bool(self.converged), "iterations": int(self.iterations),
-                "residual": float(self.residual), "energy": float(self.energy),
-                "seconds": float(self.seconds), "n_elements": int(self.design.n_cells),
-                "n_points": int(self.design.mesh.n_points), "method": self.method,
-                "frames": len(self.frames)}
+        """The numbers of the result for JSON: convergence, cost, and the penetration check.
+
+        ``penetration_mm`` is the deepest self-penetration of any frame (0 when none),
+        ``contact`` whether the solve used self-contact; ``penetration`` and
+        ``contact_info`` give the details (:meth:`Penetration.as_dict`,
+        :meth:`ContactReport.as_dict`).
+        """
+        out = {"converged": bool(self.converged), "iterations": int(self.iterations),
+               "residual": float(self.residual), "energy": float(self.energy),
+               "seconds": float(self.seconds), "n_elements": int(self.design.n_cells),
+               "n_points": int(self.design.mesh.n_points), "method": self.method,
+               "frames": len(self.frames)}
+        if self.penetration is not None:
+            depth = max((p.depth_mm for p in self.frame_penetration), default=self.penetration.depth_mm)
+            out["penetration_mm"] = float(depth)
+            out["penetration"] = {**self.penetration.as_dict(), "frames_penetrating": int(
+                sum(p.found for p in self.frame_penetration))}
+        if self.contact is not None:
+            out["contact"] = bool(self.contact.used)
+            out["contact_info"] = self.contact.as_dict()
+        return out
 
 
 def simulate(design, *, method="auto", init="auto", steps=1, tol=1e-7, max_iter=None,
-             history=6, seed=0, model=None):
+             history=6, seed=0, model=None, contact="auto", dhat=None):
     """Simulate the heat-activated shape change of a design.
 
     Parameters
@@ -143,23 +185,56 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=1e-7, max_iter=
         Simulate the design with the contractions this deformation model gives its cells
         (:meth:`gdfe.DeformationModel.apply`; the design must carry its passive thickness
         ``d``) instead of those it was made with.
+    contact : {"auto", "on", "off"}
+        Self-contact, which keeps the film from passing through itself
+        (:mod:`gdfe.solver.contact`; needs the IPC Toolkit, ``pip install 'gdfe[contact]'``).
+        ``"auto"`` (default): the contact-free solve, checked for self-penetration on
+        every frame, and solved again with contact only when it penetrates - so nothing
+        slows down where nothing touches, and nothing that passes through itself is
+        returned as an answer while contact is installed. ``"on"``: every frame with
+        contact. ``"off"``: no contact; a result that penetrates itself is logged as a
+        warning. Every result carries the check (:attr:`Result.penetration`). A contact
+        solve uses a Newton method (``"auto"``'s choice where ``method`` is an
+        alternation; ``contact="on"`` with an alternation is an error) and follows the
+        contraction through at least :data:`CONTACT_LEVELS` levels.
+    dhat : float, optional
+        Gap [mm] within which the contact barrier acts (default
+        :func:`gdfe.solver.contact.default_dhat`, 0.1 h or less on fine meshes).
 
     Returns
     -------
     Result
         Check ``result.converged`` (or call ``result.check()``): a solve that hit
-        ``max_iter`` is returned with ``converged=False`` and logged as a warning.
+        ``max_iter`` is returned with ``converged=False`` and logged as a warning; and
+        ``result.penetration`` (or ``result.penetrates``).
+
+    Notes
+    -----
+    With contact the shape depends on the path as well as on the design: two flaps that
+    meet can end either way round, and two ends that meet head-on can stop there (a local
+    minimum of the energy). The contact solve follows the activation ramp, as the film
+    contracts when heated; a design symmetric about the place where it meets itself stays
+    symmetric up to round-off, and may stop where a real part, never quite symmetric,
+    would slide on.
     """
     method = check_choice("method", method, METHODS)
     check_instance("design", design, Design)
     if model is not None:
         design = as_model(model).apply(design)
+    contact = check_choice("contact", contact, CONTACT_MODES)
+    if dhat is not None:
+        dhat = float(check_positive("dhat", dhat))
+    requested = method
     if method == "auto":
         method = auto_method(design)
+    if contact == "on" and not method.startswith("newton"):
+        raise GdfeError(f"contact: the contact solve needs a Newton method ('auto', 'newton' or 'newton-cg'), "
+                        f"got method={requested!r}")
     if isinstance(init, str):
         init = check_choice("init", init, INITS)
         if init == "auto":
             init = "multilevel" if design.n_cells > MULTILEVEL_CELLS else "linear"
+        start = None
     else:
         start = check_array("init", init, shape=design.mesh.points.shape)
         init = "given"
@@ -171,34 +246,158 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=1e-7, max_iter=
     tol = check_tol(tol)
     t0 = time.perf_counter()
     solver = Solver(design)
+    check = PenetrationCheck(design)
+    acts = np.linspace(0.0, 1.0, steps + 1)
+    opts = dict(init=init, start=start, seed=seed, tol=tol, max_iter=max_iter, history=history)
+    term = Contact(design, dhat) if contact == "on" else None
+    run = _run_frames(solver, acts, method, term, **opts)
+    timings = {}
+    pens, t_check = _check_frames(check, run.frames)
+    report = ContactReport(mode=contact, used=term is not None, available=contact_available(),
+                           reason="contact='on'" if term is not None else "")
+    if contact == "auto" and any(p.found for p in pens):
+        worst = max(pens, key=lambda p: p.depth_mm)
+        if report.available:
+            log.info("the contact-free solve passes through itself (%d crossing face pairs, %.3g mm deep); "
+                     "solving again with contact", worst.intersecting_pairs, worst.depth_mm)
+            timings["contact_free_solve"] = time.perf_counter() - t0
+            term = Contact(design, dhat)
+            cmethod = method if method.startswith("newton") else auto_method(design)
+            if cmethod != method:
+                log.info("contact solve with method=%r (the contact solve needs a Newton method)", cmethod)
+            method = cmethod
+            run = _run_frames(solver, acts, method, term, **opts)
+            pens, t2 = _check_frames(check, run.frames)
+            t_check += t2
+            report = ContactReport(mode=contact, used=True, available=True,
+                                   reason=f"the contact-free solve penetrated itself ({worst.depth_mm:.3g} mm)")
+        else:
+            report = ContactReport(mode=contact, used=False, available=False,
+                                   reason="the contact-free solve penetrates itself but the IPC Toolkit is not "
+                                          "installed: pip install 'gdfe[contact]'")
+    if term is not None:
+        report = dataclasses.replace(report, dhat_mm=term.dhat, stiffness=term.stiffness,
+                                     pairs=run.contact_pairs, barrier_energy=run.contact_energy)
+    if any(p.found for p in pens):
+        worst = max(pens, key=lambda p: p.depth_mm)
+        log.warning("the simulated shape passes through itself: %d crossing face pairs, %d cells, %.3g mm deep%s",
+                    worst.intersecting_pairs, worst.penetrated_cells, worst.depth_mm,
+                    "" if term is not None else
+                    ("; simulate with contact='on' (or 'auto')" if report.available
+                     else "; install the IPC Toolkit for contact: pip install 'gdfe[contact]'"))
+    seconds = time.perf_counter() - t0
+    timings.update(solver.timings)
+    timings["penetration_check"] = t_check
+    if term is not None:
+        timings.update(term.timings)
+    log.info("GDFE %s: %d cells, %d iterations, residual %.2e, %.3f s%s", method, design.n_cells, run.total,
+             run.residual, seconds, ", with contact" if term is not None else "")
+    return Result(design=design, points=run.frames[-1], converged=bool(run.converged), iterations=run.total,
+                  residual=run.residual, energy=run.energies[-1], energy_history=np.array(run.energies),
+                  seconds=seconds, frames=run.frames, activation=acts, frame_iterations=run.per_frame,
+                  method=method, timings=timings, penetration=pens[-1], contact=report, frame_penetration=pens)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class _FrameRun:
+    """The frames of one run of the ramp (what :func:`simulate` makes its :class:`Result` from)."""
+
+    frames: list
+    converged: bool
+    total: int
+    residual: float
+    energies: list
+    per_frame: list
+    contact_pairs: int = 0
+    contact_energy: float = 0.0
+
+
+def _check_frames(check, frames):
+    """The penetration check of every frame after the flat print, and the seconds it took."""
+    t0 = time.perf_counter()
+    pens = [check(V) for V in frames[1:]]
+    return pens, time.perf_counter() - t0
+
+
+def _first_start(solver, design, init, start, seed, a):
+    """The starting shape of the first frame, at activation ``a``."""
+    V = design.mesh.points.copy()
+    if init == "linear":
+        return solver.linearised_start(V, a)
+    if init == "multilevel":
+        t_start = time.perf_counter()
+        V = multilevel_start(design, a)
+        solver.timings["start"] = solver.timings.get("start", 0.0) + time.perf_counter() - t_start
+        return V
+    if init == "given":
+        return start.copy()
+    return flat_start(design, seed)
+
+
+def _clear_start(solver, term, init, start, seed, a, method, max_iter, depth=0):
+    """A start at activation ``a`` free of self-intersection, and the iterations it took.
+
+    The first-frame start of ``init`` if it is clear (a given shape that is not is replaced
+    by the linearised start); else the contact solution at ``a / 2`` (recursively), down to
+    the flat print's own start, which is flat and clear.
+    """
+    design = solver.design
+    V = _first_start(solver, design, init, start, seed, a)
+    if term.is_clear(V):
+        return V, 0
+    if init == "given":
+        log.warning("the given starting shape passes through itself; the contact solve starts from the "
+                    "linearised start instead")
+        init = "linear"
+        V = _first_start(solver, design, init, start, seed, a)
+        if term.is_clear(V):
+            return V, 0
+    if depth >= 6:
+        V = flat_start(design, seed)
+        if not term.is_clear(V):
+            raise GdfeError("contact: the flat print itself is not free of self-intersection")
+        return V, 0
+    Vh, its = _clear_start(solver, term, init, start, seed, 0.5 * a, method, max_iter, depth + 1)
+    stats = solver.solve(Vh, 0.5 * a, method=method, tol=CONTACT_LEVEL_TOL, max_iter=max_iter, contact=term)
+    return stats.points, its + stats.iterations
+
+
+def _run_frames(solver, acts, method, term, *, init, start, seed, tol, max_iter, history):
+    """Solve every frame of the ramp ``acts``, each from the last (with contact: through added levels)."""
+    design = solver.design
     V = design.mesh.points.copy()
     frames = [V.copy()]
-    acts = np.linspace(0.0, 1.0, steps + 1)
     converged, total, res, energies, per_frame = True, 0, 0.0, [], []
+    stats = None
     for k, a in enumerate(acts[1:]):
-        if k == 0:
-            if init == "linear":
-                V = solver.linearised_start(V, a)
-            elif init == "multilevel":
-                t_start = time.perf_counter()
-                V = multilevel_start(design, a)
-                solver.timings["start"] = time.perf_counter() - t_start
-            elif init == "given":
-                V = start.copy()
-            else:
-                V = flat_start(design, seed)
-        stats = solver.solve(V, a, method=method, tol=tol, max_iter=max_iter, history=history)
+        frame_its = 0
+        if term is None:
+            if k == 0:
+                V = _first_start(solver, design, init, start, seed, a)
+            stats = solver.solve(V, a, method=method, tol=tol, max_iter=max_iter, history=history)
+        else:
+            a_prev = acts[k]
+            n_levels = 1 if (k == 0 and init == "given") else max(1, int(np.ceil(CONTACT_LEVELS * (a - a_prev) - 1e-9)))
+            levels = np.linspace(a_prev, a, n_levels + 1)[1:]
+            for j, b in enumerate(levels):
+                if k == 0 and j == 0:
+                    V, its = _clear_start(solver, term, init, start, seed, b, method, max_iter)
+                    frame_its += its
+                last = j == len(levels) - 1
+                stats = solver.solve(V, b, method=method, tol=tol if last else CONTACT_LEVEL_TOL,
+                                     max_iter=max_iter, contact=term)
+                V = stats.points
+                if not last:
+                    frame_its += stats.iterations
         V, res = stats.points, stats.residual
         converged &= stats.converged
-        total += stats.iterations
-        per_frame.append(stats.iterations)
+        frame_its += stats.iterations
+        total += frame_its
+        per_frame.append(frame_its)
         energies.extend(stats.energies)
         frames.append(V.copy())
         if not stats.converged:
             log.warning("frame %d/%d (activation %.3g) did not converge: residual %.3g after %d iterations",
-                        k + 1, steps, a, res, stats.iterations)
-    seconds = time.perf_counter() - t0
-    log.info("GDFE %s: %d cells, %d iterations, residual %.2e, %.3f s", method, design.n_cells, total, res, seconds)
-    return Result(design=design, points=V, converged=bool(converged), iterations=total, residual=res,
-                  energy=energies[-1], energy_history=np.array(energies), seconds=seconds, frames=frames,
-                  activation=acts, frame_iterations=per_frame, method=method, timings=dict(solver.timings))
+                        k + 1, len(acts) - 1, a, res, stats.iterations)
+    return _FrameRun(frames=frames, converged=bool(converged), total=total, residual=res, energies=energies,
+                     per_frame=per_frame, contact_pairs=stats.contact_pairs, contact_energy=stats.contact_energy)

@@ -1,0 +1,452 @@
+"""Self-penetration of a film's shape: where its boundary surface passes through itself.
+
+The check works with NumPy and SciPy alone, so every result carries it whether or not the
+contact library is installed (:mod:`gdfe.solver.contact` needs it; this module does not).
+It looks at the film's boundary surface, the boundary quadrilaterals of the hex mesh
+(:func:`gdfe.io.surface_faces`) split into two triangles each (:func:`surface_triangles`),
+and finds:
+
+- **crossing triangles**: pairs of boundary triangles that share no vertex and intersect
+  (an edge of one passes through the inside of the other: a segment-triangle test on the
+  six edges of each candidate pair; touching is not crossing). Candidates are the pairs
+  whose centroids lie within their radii summed (k-d trees, the triangles in two classes
+  by size) and whose bounding boxes overlap;
+- **vertices inside the film elsewhere**: boundary vertices inside a cell that is not within
+  one cell of them (each cell split into six tetrahedra along its 0-6 diagonal), by more
+  than round-off from the film's surface (a vertex on it touches, and does not count);
+- **the depth**: for those vertices, the distance to the nearest boundary triangle that is
+  not their neighbour - how far the vertex would have to move to leave that part of the
+  film; the deepest is reported (0 where triangles cross with no vertex inside: a crossing
+  shallower than the spacing of the vertices);
+- **the gap**: the smallest distance from a boundary vertex to a boundary triangle that
+  faces it (each lies in front of the other, by the triangle's normal and the vertex's
+  area-weighted normal) and is not its neighbour, within a search range.
+
+"Neighbours" are kept out of all of them: a vertex and a cell are neighbours when the cell
+shares a vertex with a cell of that vertex (the film's own thickness and the next cells
+along it are not contact).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from gdfe._validation import check_array, check_instance, check_positive
+from gdfe.design import Design
+from gdfe.io import surface_faces
+
+__all__ = ["GAP_RANGE_H", "Penetration", "PenetrationCheck", "check_penetration", "surface_triangles",
+           "point_triangle_closest", "segments_cross_triangles"]
+
+#: Range of the gap search, in film thicknesses: facing parts of the surface further apart
+#: than this are reported as "no gap within range" (``min_gap_mm`` None).
+GAP_RANGE_H = 0.25
+
+# how far inside (0, 1) a crossing's coordinates must be: touching within round-off is not crossing
+_CROSS_EPS = 1e-9
+# the six tetrahedra of a hexahedron (VTK order) about its diagonal 0-6
+_HEX_TETS = np.array([[0, 1, 2, 6], [0, 2, 3, 6], [0, 3, 7, 6], [0, 7, 4, 6], [0, 4, 5, 6], [0, 5, 1, 6]])
+
+
+def surface_triangles(design):
+    """The film's boundary surface as triangles, oriented outwards.
+
+    Every boundary quadrilateral ``(a, b, c, d)`` of :func:`gdfe.io.surface_faces` gives
+    ``(a, b, c)`` and ``(a, c, d)``.
+
+    Returns
+    -------
+    tris : (t, 3) int array
+        Vertex indices into ``design.mesh.points``.
+    owner : (t,) int array
+        The cell each triangle bounds.
+    """
+    faces, owner = surface_faces(design)
+    tris = np.concatenate([faces[:, [0, 1, 2]], faces[:, [0, 2, 3]]])
+    return tris, np.concatenate([owner, owner])
+
+
+@dataclasses.dataclass(frozen=True)
+class Penetration:
+    """Where a shape passes through itself (:func:`check_penetration`).
+
+    Attributes
+    ----------
+    intersecting_pairs : int
+        Pairs of boundary triangles that share no vertex and intersect.
+    penetrated_cells : int
+        Cells that own a crossing triangle, hold a vertex of another part of the film, or
+        have a vertex inside another part.
+    depth_mm : float
+        Deepest penetration [mm] (see the module docstring); 0 when none, and where
+        triangles cross with no vertex inside the film.
+    min_gap_mm : float or None
+        Smallest distance [mm] between facing, non-neighbouring parts of the boundary
+        surface within ``gap_range_mm``; minus ``depth_mm`` where the film penetrates
+        itself; None when no two facing parts are that close.
+    gap_range_mm : float
+        Range of the gap search [mm].
+    """
+
+    intersecting_pairs: int
+    penetrated_cells: int
+    depth_mm: float
+    min_gap_mm: float | None
+    gap_range_mm: float
+
+    @property
+    def found(self) -> bool:
+        """Whether the film passes through itself anywhere."""
+        return self.intersecting_pairs > 0 or self.depth_mm > 0.0
+
+    def as_dict(self) -> dict:
+        return {"found": self.found, "intersecting_pairs": int(self.intersecting_pairs),
+                "penetrated_cells": int(self.penetrated_cells), "depth_mm": float(self.depth_mm),
+                "min_gap_mm": None if self.min_gap_mm is None else float(self.min_gap_mm),
+                "gap_range_mm": float(self.gap_range_mm)}
+
+    def text(self) -> str:
+        """One line for the command line."""
+        gap = ("no facing parts within %.3g mm" % self.gap_range_mm if self.min_gap_mm is None
+               else f"min gap {self.min_gap_mm:.4g} mm")
+        if not self.found:
+            return f"no self-penetration ({gap})"
+        return (f"SELF-PENETRATION: {self.intersecting_pairs} crossing face pairs, {self.penetrated_cells} cells, "
+                f"{self.depth_mm:.4g} mm deep")
+
+
+# -- geometric kernels (vectorised over rows) -------------------------------------------------
+
+def _dot(a, b):
+    return np.einsum("...i,...i->...", a, b)
+
+
+def segments_cross_triangles(p0, p1, a, b, c):
+    """Whether each segment ``p0 -> p1`` passes through triangle ``(a, b, c)``, row by row.
+
+    Moller-Trumbore: the segment's parameter and the barycentric coordinates of its
+    crossing of the triangle's plane must all lie inside (0, 1) by more than
+    :data:`_CROSS_EPS` (round-off): touching at an end, an edge or a vertex is not
+    crossing, nor is a segment in the plane.
+
+    Parameters
+    ----------
+    p0, p1, a, b, c : (k, 3) float arrays [mm]
+
+    Returns
+    -------
+    (k,) bool array
+    """
+    d = p1 - p0
+    e1, e2 = b - a, c - a
+    pvec = np.cross(d, e2)
+    det = _dot(e1, pvec)
+    scale = np.linalg.norm(d, axis=1) * np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1)
+    ok = np.abs(det) > 1e-12 * np.maximum(scale, 1e-300)
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    t = p0 - a
+    u = _dot(t, pvec) * inv
+    q = np.cross(t, e1)
+    v = _dot(d, q) * inv
+    s = _dot(e2, q) * inv
+    e = _CROSS_EPS
+    return ok & (u > e) & (v > e) & (u + v < 1 - e) & (s > e) & (s < 1 - e)
+
+
+def point_triangle_closest(p, a, b, c):
+    """Closest point of triangle ``(a, b, c)`` to ``p``, row by row (by the Voronoi regions).
+
+    Parameters
+    ----------
+    p, a, b, c : (k, 3) float arrays [mm]
+
+    Returns
+    -------
+    (k, 3) float array [mm]
+    """
+    ab, ac, ap = b - a, c - a, p - a
+    d1, d2 = _dot(ab, ap), _dot(ac, ap)
+    bp = p - b
+    d3, d4 = _dot(ab, bp), _dot(ac, bp)
+    cp = p - c
+    d5, d6 = _dot(ab, cp), _dot(ac, cp)
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    denom = va + vb + vc
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v = vb / denom
+        w = vc / denom
+        out = a + v[:, None] * ab + w[:, None] * ac  # inside the face
+        # edges
+        t_ab = d1 / (d1 - d3)
+        t_ac = d2 / (d2 - d6)
+        t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+    edge_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
+    edge_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
+    edge_bc = (va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0)
+    out = np.where(edge_bc[:, None], b + t_bc[:, None] * (c - b), out)
+    out = np.where(edge_ac[:, None], a + t_ac[:, None] * ac, out)
+    out = np.where(edge_ab[:, None], a + t_ab[:, None] * ab, out)
+    # vertices
+    out = np.where(((d6 >= 0) & (d5 <= d6))[:, None], c, out)
+    out = np.where(((d3 >= 0) & (d4 <= d3))[:, None], b, out)
+    out = np.where(((d1 <= 0) & (d2 <= 0))[:, None], a, out)
+    bad = ~np.isfinite(out).all(axis=1)  # degenerate triangle: its nearest vertex
+    if bad.any():
+        cand = np.stack([a[bad], b[bad], c[bad]], axis=1)
+        k = np.argmin(np.linalg.norm(cand - p[bad, None], axis=2), axis=1)
+        out[bad] = cand[np.arange(k.size), k]
+    return out
+
+
+def _inside_hexes(p, H):
+    """Whether each point ``p`` (k, 3) is in hexahedron ``H`` (k, 8, 3), its boundary included, by six tetrahedra."""
+    inside = np.zeros(len(p), bool)
+    for tet in _HEX_TETS:
+        a, b, c, d = (H[:, i] for i in tet)
+        vol = _dot(np.cross(b - a, c - a), d - a)
+        s = np.sign(vol)
+        tol = -_CROSS_EPS * np.abs(vol)
+        v0 = _dot(np.cross(b - p, c - p), d - p) * s
+        v1 = _dot(np.cross(p - a, c - a), d - a) * s
+        v2 = _dot(np.cross(b - a, p - a), d - a) * s
+        v3 = _dot(np.cross(b - a, c - a), p - a) * s
+        inside |= (s != 0) & (v0 >= tol) & (v1 >= tol) & (v2 >= tol) & (v3 >= tol)
+    return inside
+
+
+def _pairs(tree_a, tree_b, r):
+    """Index pairs ``(i, j)`` with point ``i`` of ``tree_a`` within ``r`` of point ``j`` of ``tree_b``."""
+    m = tree_a.sparse_distance_matrix(tree_b, r, output_type="ndarray")
+    return m["i"].astype(np.int64), m["j"].astype(np.int64)
+
+
+class PenetrationCheck:
+    """The penetration check of one design's film, its topology prepared once.
+
+    Parameters
+    ----------
+    design : Design
+    gap_range : float, optional
+        Range of the gap search [mm]; default :data:`GAP_RANGE_H` times h.
+
+    Attributes
+    ----------
+    tris : (t, 3) int array
+        Boundary triangles (:func:`surface_triangles`).
+    owner : (t,) int array
+        Their cells.
+    surface : (s,) int array
+        The boundary vertices.
+    gap_range : float [mm]
+    """
+
+    def __init__(self, design, gap_range=None):
+        check_instance("design", design, Design)
+        self.design = design
+        self.gap_range = GAP_RANGE_H * design.h if gap_range is None else float(check_positive("gap_range", gap_range))
+        self.tris, self.owner = surface_triangles(design)
+        self.surface = np.unique(self.tris)
+        cells = design.mesh.cells
+        self.cells = cells
+        self.n = design.mesh.n_points
+        # vertex pairs that share a cell, as sorted keys u * n + v
+        a = np.repeat(cells, 8, axis=1).ravel().astype(np.int64)
+        b = np.tile(cells, (1, 8)).ravel().astype(np.int64)
+        self._near = np.unique(a * self.n + b)
+        # cells of each vertex (CSR rows)
+        m = cells.shape[0]
+        order = np.argsort(cells.ravel(), kind="stable")
+        self._vc_cells = np.repeat(np.arange(m), 8)[order]
+        self._vc_ptr = np.concatenate([[0], np.cumsum(np.bincount(cells.ravel(), minlength=self.n))])
+
+    def neighbours(self, p, c):
+        """Whether vertex ``p[k]`` and cell ``c[k]`` are neighbours (the cell shares a vertex with a cell of ``p``).
+
+        Parameters
+        ----------
+        p, c : (k,) int arrays
+
+        Returns
+        -------
+        (k,) bool array
+        """
+        keys = p[:, None].astype(np.int64) * self.n + self.cells[c]
+        idx = np.minimum(np.searchsorted(self._near, keys), self._near.size - 1)
+        return (self._near[idx] == keys).any(axis=1)
+
+    def _cells_of(self, verts):
+        """The cells of each vertex in ``verts``, as (vertex, cell) index arrays."""
+        starts, stops = self._vc_ptr[verts], self._vc_ptr[verts + 1]
+        counts = stops - starts
+        rows = np.repeat(np.arange(verts.size), counts)
+        offs = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+        return verts[rows], self._vc_cells[starts[rows] + offs]
+
+    def __call__(self, points) -> Penetration:
+        """Check the shape ``points`` ``(n, 3)`` [mm]; see the module docstring."""
+        X = check_array("points", points, shape=(self.n, 3))
+        tris, owner = self.tris, self.owner
+        A, B, C = X[tris[:, 0]], X[tris[:, 1]], X[tris[:, 2]]
+        tri = _Triangles(A, B, C)
+        bad_cells = []
+
+        # 1. crossing triangles: candidates whose centroids are closer than their radii summed
+        i, j = tri.close_pairs()
+        ti, tj = tris[i], tris[j]
+        share = (ti[:, :, None] == tj[:, None, :]).any(axis=(1, 2))
+        i, j = i[~share], j[~share]
+        box = np.all((tri.lo[i] <= tri.hi[j]) & (tri.lo[j] <= tri.hi[i]), axis=1)
+        i, j = i[box], j[box]
+        hit = np.zeros(i.size, bool)
+        for s, t in ((i, j), (j, i)):
+            for e0, e1 in ((0, 1), (1, 2), (2, 0)):
+                hit |= segments_cross_triangles(X[tris[s, e0]], X[tris[s, e1]], A[t], B[t], C[t])
+        i, j = i[hit], j[hit]
+        if i.size:
+            bad_cells += [owner[i], owner[j]]
+
+        # 2. boundary vertices inside cells elsewhere in the film
+        surf = self.surface
+        Xs = X[surf]
+        H = X[self.cells]
+        hc = H.mean(axis=1)
+        hrad = float(np.sqrt(np.max(np.sum((H - hc[:, None]) ** 2, axis=2))))
+        vi, ci = _pairs(cKDTree(Xs), cKDTree(hc), hrad)
+        own = (self.cells[ci] == surf[vi][:, None]).any(axis=1)  # a vertex is on its own cells' boundary
+        vi, ci = vi[~own], ci[~own]
+        inside = _inside_hexes(Xs[vi], H[ci])
+        vi, ci = vi[inside], ci[inside]
+        keep = ~self.neighbours(surf[vi], ci)
+        vi, ci = vi[keep], ci[keep]
+        verts = np.unique(surf[vi])
+        d = self._depth(X, verts, tri, 2.0 * hrad)
+        # a vertex on the other part's surface touches it: inside by more than round-off only
+        deep = d > _CROSS_EPS * hrad
+        depth = float(d[deep].max(initial=0.0))
+        if deep.any():
+            sel = np.isin(surf[vi], verts[deep])
+            vi, ci = vi[sel], ci[sel]
+            bad_cells += [ci, self._cells_of(verts[deep])[1]]
+        else:
+            vi = vi[:0]
+
+        # 3. the gap between facing parts of the surface
+        found = i.size > 0 or vi.size > 0
+        gap = -depth if found else self._gap(X, tri)
+        ncells = int(np.unique(np.concatenate(bad_cells)).size) if bad_cells else 0
+        return Penetration(intersecting_pairs=int(i.size), penetrated_cells=ncells, depth_mm=float(depth),
+                           min_gap_mm=gap, gap_range_mm=self.gap_range)
+
+    def _depth(self, X, verts, tri, r):
+        """Distance [mm] from each vertex to the nearest boundary triangle that is not its neighbour."""
+        vi, tj = tri.pairs_with(X[verts], r)
+        keep = ~self.neighbours(verts[vi], self.owner[tj])
+        vi, tj = vi[keep], tj[keep]
+        out = np.full(verts.size, r + tri.rmax)
+        if vi.size:
+            p = X[verts[vi]]
+            q = point_triangle_closest(p, tri.A[tj], tri.B[tj], tri.C[tj])
+            np.minimum.at(out, vi, np.linalg.norm(p - q, axis=1))
+        return out
+
+    def _gap(self, X, tri):
+        """Smallest distance [mm] between a boundary vertex and a facing boundary triangle within range."""
+        surf = self.surface
+        r = self.gap_range
+        vi, tj = tri.pairs_with(X[surf], r)
+        if not vi.size:
+            return None
+        p = X[surf[vi]]
+        # the vertex in front of the triangle's plane and within range of it (cheap, necessary)
+        s = _dot(p - tri.A[tj], tri.unit[tj])
+        front = (s > 1e-9 * r) & (s <= r)
+        vi, tj, p = vi[front], tj[front], p[front]
+        if not vi.size:
+            return None
+        # area-weighted vertex normals
+        vn = np.zeros((self.n, 3))
+        for k in range(3):
+            np.add.at(vn, self.tris[:, k], tri.N)
+        q = point_triangle_closest(p, tri.A[tj], tri.B[tj], tri.C[tj])
+        dist = np.linalg.norm(p - q, axis=1)
+        facing = (_dot(p - q, tri.N[tj]) > 0) & (_dot(q - p, vn[surf[vi]]) > 0) & (dist <= r)
+        vi, tj, dist = vi[facing], tj[facing], dist[facing]
+        keep = ~self.neighbours(surf[vi], self.owner[tj])
+        return float(dist[keep].min()) if keep.any() else None
+
+
+class _Triangles:
+    """Boundary triangles at one shape, with what the searches need: boxes, normals, radii, k-d trees.
+
+    Triangles are kept in two classes by their radius (the side faces of a film thicker than
+    its cells are long and thin), so that a search's range follows the triangles it meets.
+    """
+
+    def __init__(self, A, B, C):
+        self.A, self.B, self.C = A, B, C
+        self.lo = np.minimum(np.minimum(A, B), C)
+        self.hi = np.maximum(np.maximum(A, B), C)
+        self.N = np.cross(B - A, C - A)  # twice the area times the unit normal
+        self.unit = self.N / np.maximum(np.linalg.norm(self.N, axis=1, keepdims=True), 1e-300)
+        cen = (A + B + C) / 3.0
+        self.rad = np.sqrt(np.max([_dot(A - cen, A - cen), _dot(B - cen, B - cen), _dot(C - cen, C - cen)], axis=0))
+        self.rmax = float(self.rad.max())
+        split = 1.5 * float(np.median(self.rad))
+        self.classes = []
+        for sel in (self.rad <= split, self.rad > split):
+            idx = np.nonzero(sel)[0]
+            if idx.size:
+                self.classes.append((idx, cKDTree(cen[idx]), float(self.rad[idx].max())))
+
+    def close_pairs(self):
+        """Pairs ``(i, j)``, ``i != j``, of triangles whose centroids are within their classes' radii summed."""
+        out_i, out_j = [], []
+        for a, (ia, ta, ra) in enumerate(self.classes):
+            for b, (ib, tb, rb) in enumerate(self.classes):
+                if b < a:
+                    continue
+                if a == b:
+                    pr = ta.query_pairs(2.0 * ra, output_type="ndarray")
+                    out_i.append(ia[pr[:, 0]])
+                    out_j.append(ia[pr[:, 1]])
+                else:
+                    u, v = _pairs(ta, tb, ra + rb)
+                    out_i.append(ia[u])
+                    out_j.append(ib[v])
+        return np.concatenate(out_i), np.concatenate(out_j)
+
+    def pairs_with(self, points, r):
+        """Pairs ``(k, t)`` of points and triangles closer than ``r`` (by centroid, with the triangle's class radius)."""
+        tree = cKDTree(points)
+        out_k, out_t = [], []
+        for idx, t, rad in self.classes:
+            u, v = _pairs(tree, t, r + rad)
+            out_k.append(u)
+            out_t.append(idx[v])
+        return np.concatenate(out_k), np.concatenate(out_t)
+
+
+def check_penetration(points, design, gap_range=None) -> Penetration:
+    """Whether, where and how deep a shape of ``design`` passes through itself.
+
+    Parameters
+    ----------
+    points : (n, 3) float array [mm]
+        Vertex positions (e.g. ``result.points``).
+    design : Design
+    gap_range : float, optional
+        Range of the gap search [mm]; default :data:`GAP_RANGE_H` times h.
+
+    Returns
+    -------
+    Penetration
+
+    See the module docstring for what is counted. For several shapes of one design make a
+    :class:`PenetrationCheck` once and call it on each.
+    """
+    return PenetrationCheck(design, gap_range)(points)

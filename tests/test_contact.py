@@ -1,0 +1,326 @@
+"""Self-contact and the penetration check (issue 13).
+
+References: hand-computed geometry (a plate laid into another by a known depth, a known gap,
+segment-triangle and closest-point cases), the barrier's closed form ``b(d)`` (the contact
+energy is an integer number of pairs times ``kappa b(d)`` for two parallel plates),
+invariants (rigid motions, energy never increasing, no trial shape ever crossing itself),
+the contact-free path unchanged (bit-identical), and the IPC Toolkit's own intersection test.
+"""
+
+import json
+import math
+import sys
+
+import numpy as np
+import pytest
+
+import gdfe
+from gdfe.cli import main
+from gdfe.solver.contact import Contact, barrier, contact_patches, default_dhat, require_ipctk
+from gdfe.solver.penetration import (PenetrationCheck, check_penetration, point_triangle_closest,
+                                     segments_cross_triangles)
+
+H = gdfe.paper.H
+
+
+def _ipctk():
+    return pytest.importorskip("ipctk")
+
+
+def _plates(gap=None, overlap=None, cells=(3, 3), pixel=0.2, shift=(0.0, 0.0)):
+    """Two square rigid plates side by side in the print; the second laid over the first.
+
+    Returns the design and the shape with plate b's bottom face ``gap`` above plate a's top
+    face (or ``overlap`` into it), its cells above a's, moved sideways by ``shift`` [mm].
+    """
+    nx, ny = cells
+    rows = ["R" * nx + "." * 2 + "R" * nx] * ny
+    des = gdfe.from_rows(rows, R=1.0, h=H, pixel=pixel, nz=1)
+    X = des.mesh.points.copy()
+    b = X[:, 0] > (nx + 1) * pixel
+    dz = H + (gap if gap is not None else -overlap)
+    X[b, 0] -= (nx + 2) * pixel - shift[0]
+    X[b, 1] += shift[1]
+    X[b, 2] += dz
+    return des, X
+
+
+# -- the penetration check (no contact library needed) -----------------------------------------
+
+def test_kernels_against_hand_computed_cases():
+    a, b, c = np.array([[0.0, 0, 0]]), np.array([[1.0, 0, 0]]), np.array([[0.0, 1, 0]])
+    up, down = np.array([[0.2, 0.2, 1.0]]), np.array([[0.2, 0.2, -1.0]])
+    assert segments_cross_triangles(up, down, a, b, c)[0]
+    assert not segments_cross_triangles(up, up + [0, 0, 1.0], a, b, c)[0]  # stops short of the plane
+    assert not segments_cross_triangles(up + [1.0, 1.0, 0], down + [1.0, 1.0, 0], a, b, c)[0]  # misses
+    assert not segments_cross_triangles(np.array([[0.1, 0.1, 0.0]]), np.array([[0.3, 0.1, 0.0]]), a, b, c)[0]
+    cases = {(0.2, 0.2, 0.5): (0.2, 0.2, 0.0),  # over the face
+             (-1.0, -1.0, 0.0): (0.0, 0.0, 0.0),  # vertex region of a
+             (0.5, -2.0, 1.0): (0.5, 0.0, 0.0),  # edge ab
+             (1.0, 1.0, 0.0): (0.5, 0.5, 0.0),  # edge bc
+             (3.0, -1.0, 0.0): (1.0, 0.0, 0.0)}  # vertex b
+    for p, q in cases.items():
+        np.testing.assert_allclose(point_triangle_closest(np.array([p]), a, b, c)[0], q, atol=1e-15)
+
+
+def test_flat_sheet_and_open_fold_report_no_penetration():
+    sheet = gdfe.from_rows(["RTTTR", "RTTTR", "RBBBR"], R=0.7, pixel=0.2, nz=2)
+    p = check_penetration(sheet.mesh.points, sheet)
+    assert not p.found and p.intersecting_pairs == 0 and p.depth_mm == 0.0 and p.min_gap_mm is None
+    res = gdfe.simulate(gdfe.hinge(2.6, d=0.33), contact="off")  # folds 2.73 rad: the panels stay apart
+    assert not res.penetration.found and not res.penetrates
+    assert res.summary()["penetration_mm"] == 0.0 and res.summary()["contact"] is False
+
+
+@pytest.mark.parametrize("shift", [(0.0, 0.0), (0.05, 0.03)])
+def test_plate_laid_into_another_by_a_known_depth(shift):
+    """Plate b's bottom face 0.05 mm inside plate a: its points there are 0.05 mm from a's top face."""
+    des, X = _plates(overlap=0.05, shift=shift)
+    p = check_penetration(X, des)
+    assert p.found
+    # aligned, the side faces only touch (no crossing); moved sideways, b's sides cross a's top
+    assert (p.intersecting_pairs > 0) == (shift != (0.0, 0.0))
+    assert p.depth_mm == pytest.approx(0.05, abs=1e-12)
+    assert p.min_gap_mm == pytest.approx(-0.05, abs=1e-12)
+    assert p.penetrated_cells == 18  # every cell of both 3 x 3 plates
+
+
+@pytest.mark.parametrize("gap", [0.01, 0.05])
+def test_gap_between_facing_plates(gap):
+    des, X = _plates(gap=gap)
+    p = check_penetration(X, des)
+    assert not p.found and p.min_gap_mm == pytest.approx(gap, abs=1e-12)
+    far = check_penetration(_plates(gap=0.5)[1], des)
+    assert far.min_gap_mm is None  # beyond the search range (h / 4)
+
+
+def test_check_is_invariant_under_rigid_motions():
+    des, X = _plates(overlap=0.05)
+    rng = np.random.default_rng(3)
+    Q, _ = np.linalg.qr(rng.standard_normal((3, 3)))
+    Q *= np.sign(np.linalg.det(Q))
+    a, b = check_penetration(X, des), check_penetration(X @ Q.T + [1.0, -2.0, 3.0], des)
+    assert a.intersecting_pairs == b.intersecting_pairs and a.penetrated_cells == b.penetrated_cells
+    assert a.depth_mm == pytest.approx(b.depth_mm, abs=1e-12)
+
+
+def test_check_finds_the_9mm_hinge_overlap():
+    """Without contact the 9 mm hinge folds 9.41 rad on one radius: its second turn lies in the first."""
+    res = gdfe.simulate(gdfe.hinge(9.0, d=0.33), contact="off")
+    p = res.penetration
+    assert p.found and res.penetrates and p.intersecting_pairs > 100
+    # a vertex inside a film of thickness h is at most h/2 from its surface: the turns overlap
+    # through most of the thickness
+    assert 0.3 * H < p.depth_mm <= 0.5 * H * 1.05 and p.min_gap_mm == -p.depth_mm
+    assert res.summary()["penetration_mm"] == pytest.approx(p.depth_mm)
+    ipctk = pytest.importorskip("ipctk")
+    c = Contact(res.design)
+    assert ipctk.has_intersections(c.mesh, np.asfortranarray(res.points[c.surface]))
+
+
+def test_check_agrees_with_ipctk():
+    ipctk = _ipctk()
+    for des, X in (_plates(overlap=0.05), _plates(gap=0.02)):
+        c = Contact(des)
+        assert check_penetration(X, des).found == ipctk.has_intersections(c.mesh, np.asfortranarray(X[c.surface]))
+
+
+def test_penetration_check_input():
+    des, X = _plates(gap=0.1)
+    with pytest.raises(ValueError, match=r"points: expected an array of shape \(64, 3\), got shape \(64, 2\)"):
+        check_penetration(X[:, :2], des)
+    with pytest.raises(ValueError, match="gap_range: expected a positive"):
+        PenetrationCheck(des, gap_range=-1.0)
+    with pytest.raises(TypeError, match="design: expected"):
+        check_penetration(X, "design")
+
+
+# -- the contact term --------------------------------------------------------------------------
+
+def test_barrier_closed_form_and_forces_vanish_beyond_the_gap():
+    _ipctk()
+    des, _ = _plates(gap=0.1)
+    c = Contact(des)
+    dhat = c.dhat
+    ratios = []
+    for g in (0.3 * dhat, 0.7 * dhat):
+        s = c.evaluate(_plates(gap=g)[1])
+        assert s.active > 0 and s.min_distance == pytest.approx(g, rel=1e-9)
+        # parallel plates: every active pair is g apart, so B = pairs * kappa * b(g)
+        ratios.append(s.energy / (c.stiffness * barrier(g, dhat)))
+        X = _plates(gap=g)[1]
+        grad = c.gradient(s)
+        top = X[:, 2] > H + g + 1e-9  # plate b's top face: not in contact
+        lifted = np.abs(X[:, 2] - (H + g)) < 1e-9  # plate b's bottom face
+        assert np.all(grad[lifted, 2] <= 0) and grad[lifted, 2].min() < 0  # pushes plate b up, away
+        # nothing acts on plate b's top face (round-off of the edge-edge pairs' closest points)
+        assert np.abs(grad[top]).max() <= 1e-12 * np.abs(grad).max()
+    assert ratios[0] == pytest.approx(round(ratios[0]), abs=1e-6) and ratios[0] == pytest.approx(ratios[1])
+    for g in (1.01 * dhat, 0.2):
+        s = c.evaluate(_plates(gap=g)[1])
+        assert s.active == 0 and s.energy == 0.0 and not np.any(c.gradient(s)) and c.hessian(s) is None
+
+
+def test_barrier_is_invariant_under_rigid_motions():
+    _ipctk()
+    des, X = _plates(gap=0.01)
+    c = Contact(des)
+    rng = np.random.default_rng(5)
+    Q, _ = np.linalg.qr(rng.standard_normal((3, 3)))
+    Q *= np.sign(np.linalg.det(Q))
+    Y = X @ Q.T + [0.3, 0.2, -1.0]
+    a, b = c.evaluate(X), c.evaluate(Y)
+    assert b.energy == pytest.approx(a.energy, rel=1e-10)
+    np.testing.assert_allclose(c.gradient(b), c.gradient(a) @ Q.T, atol=1e-12 * np.abs(c.gradient(a)).max())
+
+
+def test_step_limit_stops_plates_before_they_cross():
+    _ipctk()
+    des, X0 = _plates(gap=0.1)
+    _, X1 = _plates(overlap=0.1)  # straight through plate a
+    c = Contact(des)
+    a = c.max_step(X0, X1)
+    assert 0.35 < a < 0.5  # contact at 0.5 of the move; the CCD stops at 0.8 of (a bound below) it
+    assert not check_penetration(X0 + a * (X1 - X0), des).found
+    assert c.max_step(X0, X0 + [0.0, 0.0, 0.01], c.evaluate(X0)) == 1.0  # moving apart (and far): whole
+
+
+def test_neighbours_and_thickness_never_repel():
+    """The default gap stays below the film's thickness and its cells' contracted sides."""
+    _ipctk()
+    shrink = gdfe.from_rows(["SSSS", "SSSS", "SSSS"], R=0.3, pixel=0.1, nz=2)
+    assert default_dhat(shrink) == pytest.approx(0.25 * 0.3 * min(0.1, H / 2))
+    res = gdfe.simulate(shrink, contact="on")  # every cell shrinks to 0.3 of its size
+    assert res.converged and res.contact.used and res.contact.pairs == 0
+    folded = gdfe.simulate(gdfe.hinge(2.6, d=0.33), contact="off")
+    c = Contact(folded.design)
+    assert c.evaluate(folded.points).active == 0 and c.evaluate(folded.design.mesh.points).active == 0
+    assert c.dhat == pytest.approx(0.25 * 0.6947 * 2.6 / 16, rel=1e-3) and c.dhat < 0.1 * H
+
+
+def test_patches_are_rigid_regions_and_small_blocks():
+    des = gdfe.hinge(9.0, d=0.33)  # rigid panels of 4 columns, a 36-column hinge of 0.25 mm cells
+    patch = contact_patches(des)
+    cells = des.mesh.cells
+    for name in ("panel_a", "panel_b"):
+        assert np.unique(patch[cells[des.region_cells(name)]]).size <= 2
+    # blocks: a quarter turn of the tightest curl on the diagonal, pi rho / (2 sqrt 2), rho = h / (1 - R)
+    side = math.pi * H / (1 - des.R.min()) / (2 * math.sqrt(2))
+    assert int(side // 0.25) == 4
+    hinge_patches = np.unique(patch[cells[des.region_cells("hinge")]])
+    assert 9 <= hinge_patches.size <= 11
+
+
+def test_plates_folded_together_never_interpenetrate():
+    """A 5 mm hinge folds its 1 mm panels onto each other: no trial shape the solver accepts crosses itself."""
+    _ipctk()
+    des = gdfe.hinge(5.0, d=0.33, cell_size=0.5)
+    free = gdfe.simulate(des, contact="off")
+    assert free.penetration.found  # the panels pass through each other without contact
+    solver, c = gdfe.Solver(des), Contact(des)
+    seen = []
+    evaluate = c.evaluate
+
+    def recording(V):
+        s = evaluate(V)
+        if np.isfinite(s.energy):
+            seen.append(np.array(V))
+        return s
+
+    c.evaluate = recording
+    V = solver.linearised_start(des.mesh.points.copy(), 0.5)
+    stats = [solver.solve(V, 0.5, contact=c)]
+    stats.append(solver.solve(stats[0].points, 1.0, contact=c))
+    check = PenetrationCheck(des)
+    assert len(seen) > 20 and not any(check(X).found for X in seen)
+    assert all(s.converged for s in stats) and stats[1].contact_pairs > 0
+    for s in stats:  # the energy (Eq. 5 plus the barrier) never increases
+        e = np.array(s.energies)
+        assert np.all(np.diff(e) <= 1e-12 * np.abs(e[:-1])), np.diff(e).max()
+
+
+# -- simulate, design files, the command line ---------------------------------------------------
+
+def test_contact_free_path_is_unchanged():
+    des = gdfe.hinge(1.6, d=0.33)
+    off, auto = gdfe.simulate(des, contact="off", steps=2), gdfe.simulate(des, steps=2)
+    assert np.array_equal(off.points, auto.points) and off.iterations == auto.iterations
+    assert np.array_equal(off.energy_history, auto.energy_history)
+    assert not auto.contact.used and auto.contact.mode == "auto"
+
+
+def test_hinge_9mm_with_contact_has_no_penetration():
+    _ipctk()
+    des = gdfe.hinge(9.0, d=0.33)
+    res = gdfe.simulate(des)  # auto: the contact-free solve penetrates, so contact
+    assert res.converged and res.contact.used and "penetrated" in res.contact.reason
+    p = res.penetration
+    assert not res.penetrates and 0.0 < p.min_gap_mm <= res.contact.dhat_mm
+    alpha = gdfe.fold_angle(res)
+    assert 2 * math.pi * 0.9 < alpha < 9.41  # meets itself after about a turn, short of the free 9.41 rad
+    assert res.contact.pairs > 0 and res.energy == pytest.approx(res.energy_history[-1])
+    again = gdfe.simulate(des, contact="on")
+    assert np.array_equal(again.points, res.points)  # repeats exactly (one ipctk thread)
+
+
+def test_frames_with_contact_never_penetrate():
+    _ipctk()
+    res = gdfe.simulate(gdfe.hinge(5.0, d=0.33, cell_size=0.5), contact="on", steps=3)
+    assert res.converged and len(res.frame_penetration) == 3
+    assert not any(p.found for p in res.frame_penetration)
+    assert res.contact.pairs > 0  # the last frame is in contact
+
+
+def test_simulate_contact_input_checks(tmp_path):
+    des = gdfe.hinge(1.0, d=0.33)
+    with pytest.raises(ValueError, match="contact: expected one of 'auto', 'on', 'off', got 'maybe'"):
+        gdfe.simulate(des, contact="maybe")
+    with pytest.raises(ValueError, match="dhat: expected a positive"):
+        gdfe.simulate(des, dhat=-0.01)
+    with pytest.raises(ValueError, match="contact: the contact solve needs a Newton method"):
+        gdfe.simulate(des, contact="on", method="plain")
+    f = tmp_path / "part.toml"
+    f.write_text('[film]\nh = 0.29\nR = 0.7\n[layout]\npixel = 0.2\nrows = ["RTR"]\n[simulate]\ncontact = "yes"\n')
+    with pytest.raises(ValueError, match=r"part.toml: \[simulate\] contact: expected one of"):
+        gdfe.load_design(f)
+    f.write_text('[film]\nh = 0.29\nR = 0.7\n[layout]\npixel = 0.2\nrows = ["RTR"]\n[simulate]\ncontact = "off"\n')
+    assert gdfe.load_design(f)[1]["contact"] == "off"
+
+
+def test_without_ipctk(monkeypatch):
+    monkeypatch.setitem(sys.modules, "ipctk", None)
+    with pytest.raises(ValueError, match=r"IPC Toolkit, which is not installed; pip install 'gdfe\[contact\]'"):
+        require_ipctk()
+    des = gdfe.hinge(5.0, d=0.33, cell_size=0.5)
+    with pytest.raises(ValueError, match="IPC Toolkit"):
+        gdfe.simulate(des, contact="on")
+    res = gdfe.simulate(des)  # auto: checked, reported, not solved again
+    assert res.penetration.found and not res.contact.used and not res.contact.available
+    assert "not installed" in res.contact.reason
+
+
+def test_cli_exit_status_and_json(tmp_path, capsys, monkeypatch):
+    argv = ["hinge", "--length", "5", "--d", "0.33", "--cells", "10", "--json"]
+    assert main(argv + ["--no-contact"]) == 4
+    captured = capsys.readouterr()
+    out = json.loads(captured.out)
+    assert out["penetration_mm"] > 0 and out["contact"] is False and out["converged"]
+    assert "--contact" in captured.err and "--allow-penetration" in captured.err
+    assert main(argv + ["--no-contact", "--allow-penetration"]) == 0
+    capsys.readouterr()
+    monkeypatch.setitem(sys.modules, "ipctk", None)
+    assert main(argv) == 4
+    assert "pip install 'gdfe[contact]'" in capsys.readouterr().err
+
+
+def test_cli_contact_json_and_series(tmp_path, capsys):
+    _ipctk()
+    out_dir = tmp_path / "h"
+    argv = ["hinge", "--length", "5", "--d", "0.33", "--cells", "10", "--contact", "--json", "--steps", "2",
+            "--out", str(out_dir)]
+    assert main(argv) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["converged"] and out["contact"] is True and out["penetration_mm"] == 0.0
+    assert out["iterations"] > 0 and math.isfinite(out["alpha_rad"])
+    assert out["contact_info"]["pairs"] > 0 and out["penetration"]["min_gap_mm"] >= 0
+    assert (out_dir / "hinge.pvd").is_file() and len(list(out_dir.glob("hinge_*.vtu"))) == 3
