@@ -363,7 +363,8 @@ class Diagnosis:
         lines = [f"verdict: {self.verdict.verdict} -- {self.verdict.text}",
                  f"noise: {self.noise.text()}",
                  f"{len(self.tests)} folding tests; held-out error: {ho} RMSE"
-                 + ("" if b.cv == "leave-one-out" else f" ({b.cv} cross-validation)"),
+                 + (f" by {self.columns.logo}" if self.held_out == "logo" else "")
+                 + ("" if b.cv == "leave-one-out" else f"; LOO column: {b.cv} cross-validation"),
                  f"baseline (Eq. 1-3 refitted): K = {b.params[0]:.4g} +- {b.se[0]:.2g}, RMSE {b.rmse:.3f} rad, "
                  f"{ho} {self.held_out_rmse(b):.3f} rad, R^2 {_r2(self.tests.alpha, b.predicted):.3f}"]
         if self.columns.process or self.columns.groups:

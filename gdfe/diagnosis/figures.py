@@ -116,6 +116,8 @@ def _summary_md(diag, files):
     b, best = diag.baseline, diag.best
     ho = "leave-one-group-out" if diag.held_out == "logo" else "leave-one-out"
     lines = ["# Diagnosis of folding tests", "",
+             f"**Verdict: {diag.verdict.verdict}** -- {diag.verdict.text}", "",
+             f"Noise: {diag.noise.text()}.", "",
              f"{len(diag.tests)} tests. Models are compared on {ho} held-out error.", "",
              "## Baseline", "",
              f"The GDFE hinge with the deformation principle (Eq. 3) refitted: K = {b.params[0]:.4g}, "
@@ -146,6 +148,8 @@ def _summary_md(diag, files):
         lines.append(f"- `{e}`: {EFFECTS[e].meaning}.")
     if best.at_bound:
         lines.append(f"- parameters on a bound of their physical range: {', '.join(best.at_bound)}.")
+    for w in diag.warnings:
+        lines.append(f"- warning: {w}")
     lines += ["", "After the best model: " + diag.regime_best, "",
               "## Files", ""] + [f"- {k}: `{Path(v).name}`" for k, v in files.items() if k != "summary"]
     return "\n".join(lines) + "\n"

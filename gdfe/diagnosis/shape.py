@@ -23,15 +23,11 @@
    coverage and scale, and no region is named. Another part, a random cloud or a scale error
    (mm against cm or inches) end there, most before any search.
 
-   The thresholds were set on these cases (nominal shape; relative residual, coverage):
-   scans of the three-hinge test strip with one hinge's R changed from 0.8 to 1.0, 0.88, 0.6
-   or 0.4, of the Figure 6 hinge (L = 1.6 mm) at R = 0.5 or 0.9 instead of 0.69, and of the
-   tube example with one hinge unfolded or all at R = 0.8: 0.00-0.36 and 0.75-1.00 before,
-   at most 0.084 and at least 0.97 after the common factor where it was needed; another part
-   (the hinge against the strip or the tube, the strip against the hinge or the tube, the
-   tube against the strip): coverage 0.31-0.82 with residual 0.07-0.72, all but one beyond
-   :data:`CLEAR_MISMATCH` or below the coverage at once, and the one searched (the hinge
-   against the strip) still at coverage 0.68 after it;
+   The cases the thresholds were set on (scans of the three-hinge test strip, the Figure 6
+   hinge and the tube example with regions changed, and scans of one of these parts against
+   another's design), with their residuals and coverages before and after the common
+   factor, are computed by the blind-diagnosis study (:func:`studies.blind_diagnosis.scan_checks`,
+   its output's "Is the scan the part?" table);
 4. reports the **deviation** per element and per region of the design
    (:func:`~gdfe.diagnosis.regions.design_regions`), both after the global alignment and
    after aligning each region alone (its own shape error, which a global alignment spreads
@@ -47,11 +43,11 @@
 
 A measured shape must be a scan of the surface: an exact copy of the simulated *vertices*
 of a design with two or more cell layers through the film (``nz >= 2``) includes the vertices
-inside the film, up to ``h / 2`` from any surface. Aligned by ICP such a copy kept an RMS
-distance of 52 um (the 1.6 mm hinge example, ``nz = 2``: 140 of its 666 vertices lie on the
-mid-plane, 145 um from both faces, and ICP shifts the cloud to split that), not an alignment
-error: its 526 surface vertices align to 1e-16 mm, and the whole copy now takes the
-correspondence alignment, to round-off.
+inside the film, up to ``h / 2`` from any surface, which ICP can only split between the faces:
+that, not the alignment, was the floor of tens of micrometres an exact copy kept. The copy's
+surface vertices align by ICP to round-off, and a whole copy (the design's vertex count, no
+cells) now takes the correspondence alignment when it fits at least as well; the numbers are
+in the blind-diagnosis study's output.
 
 Measured shapes are read by :func:`~gdfe.diagnosis.scan.load_measured`. Lengths in mm.
 """
