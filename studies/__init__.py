@@ -29,6 +29,7 @@ STUDIES = {
     "blind-diagnosis": "studies.blind_diagnosis",
     "transfer": "studies.transfer",
     "bench-scaling": "studies.bench_scaling",
+    "contact": "studies.contact",
 }
 
 

@@ -85,6 +85,24 @@ def test_plate_laid_into_another_by_a_known_depth(shift):
     assert p.penetrated_cells == 18  # every cell of both 3 x 3 plates
 
 
+def test_strips_crossing_like_an_x_have_a_depth():
+    """Two strips of 1 mm cells crossing at 30 degrees: no vertex inside the other, still found and deep.
+
+    Strip b's edges run h / sin 30 = 0.58 mm through strip a; the points sampled along them
+    nearest a's mid-plane are nearly h / 2 from a's surface.
+    """
+    rows = ["RRR.RRR"]
+    des = gdfe.from_rows(rows, R=1.0, h=H, pixel=1.0, nz=1)
+    X = des.mesh.points.copy()
+    b = X[:, 0] > 3.5
+    c, s = math.cos(math.radians(30)), math.sin(math.radians(30))
+    xb, zb = X[b, 0] - 5.5, X[b, 2] - H / 2  # strip b about its centre
+    X[b, 0], X[b, 2] = 1.5 + c * xb - s * zb, H / 2 + s * xb + c * zb
+    p = check_penetration(X, des)
+    assert p.found and p.intersecting_pairs > 0
+    assert 0.25 * H < p.depth_mm <= 0.5 * H
+
+
 @pytest.mark.parametrize("gap", [0.01, 0.05])
 def test_gap_between_facing_plates(gap):
     des, X = _plates(gap=gap)
@@ -324,3 +342,18 @@ def test_cli_contact_json_and_series(tmp_path, capsys):
     assert out["iterations"] > 0 and math.isfinite(out["alpha_rad"])
     assert out["contact_info"]["pairs"] > 0 and out["penetration"]["min_gap_mm"] >= 0
     assert (out_dir / "hinge.pvd").is_file() and len(list(out_dir.glob("hinge_*.vtu"))) == 3
+
+
+def test_contact_study_coarse(tmp_path):
+    """The study at coarse resolution: every headline holds, its files are written."""
+    from studies import contact
+
+    r = contact.run("coarse", tmp_path)
+    assert r["converged"] and all(h["passed"] for h in r["headlines"]), [h for h in r["headlines"] if not h["passed"]]
+    assert (tmp_path / "contact.png").stat().st_size > 10_000
+    data = json.loads((tmp_path / "contact.json").read_text())
+    # no specimen of Table 1 folds far enough to meet itself, so self-contact stops none
+    assert not any(s["saturates"] for s in data["table1"]["specimens"])
+    assert data["table1"]["onset"]["alpha_meets_rad"] > contact.ALPHA_MAX
+    for row in data["cost"]["rows"]:  # timed, not asserted: recorded with the machine's load
+        assert row["off"]["converged"] and row["on"]["converged"] and row["on"]["penetration_mm"] == 0.0

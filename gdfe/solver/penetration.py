@@ -14,10 +14,10 @@ and finds:
 - **vertices inside the film elsewhere**: boundary vertices inside a cell that is not within
   one cell of them (each cell split into six tetrahedra along its 0-6 diagonal), by more
   than round-off from the film's surface (a vertex on it touches, and does not count);
-- **the depth**: for those vertices, the distance to the nearest boundary triangle that is
-  not their neighbour - how far the vertex would have to move to leave that part of the
-  film; the deepest is reported (0 where triangles cross with no vertex inside: a crossing
-  shallower than the spacing of the vertices);
+- **the depth**: for those vertices, and for seven points along every crossing edge that
+  lie inside the film elsewhere (two strips crossing like an X have no vertex in each
+  other), the distance to the nearest boundary triangle that is not their neighbour - how
+  far the point would have to move to leave that part of the film; the deepest is reported;
 - **the gap**: the smallest distance from a boundary vertex to a boundary triangle that
   faces it (each lies in front of the other, by the triangle's normal and the vertex's
   area-weighted normal) and is not its neighbour, within a search range.
@@ -47,6 +47,8 @@ GAP_RANGE_H = 0.25
 
 # how far inside (0, 1) a crossing's coordinates must be: touching within round-off is not crossing
 _CROSS_EPS = 1e-9
+# points tested along every crossing edge for the depth of a crossing
+_EDGE_SAMPLES = 7
 # the six tetrahedra of a hexahedron (VTK order) about its diagonal 0-6
 _HEX_TETS = np.array([[0, 1, 2, 6], [0, 2, 3, 6], [0, 3, 7, 6], [0, 7, 4, 6], [0, 4, 5, 6], [0, 5, 1, 6]])
 
@@ -81,8 +83,7 @@ class Penetration:
         Cells that own a crossing triangle, hold a vertex of another part of the film, or
         have a vertex inside another part.
     depth_mm : float
-        Deepest penetration [mm] (see the module docstring); 0 when none, and where
-        triangles cross with no vertex inside the film.
+        Deepest penetration [mm] (see the module docstring); 0 when none.
     min_gap_mm : float or None
         Smallest distance [mm] between facing, non-neighbouring parts of the boundary
         surface within ``gap_range_mm``; minus ``depth_mm`` where the film penetrates
@@ -303,56 +304,74 @@ class PenetrationCheck:
         box = np.all((tri.lo[i] <= tri.hi[j]) & (tri.lo[j] <= tri.hi[i]), axis=1)
         i, j = i[box], j[box]
         hit = np.zeros(i.size, bool)
+        edges = []  # the crossing edges
         for s, t in ((i, j), (j, i)):
             for e0, e1 in ((0, 1), (1, 2), (2, 0)):
-                hit |= segments_cross_triangles(X[tris[s, e0]], X[tris[s, e1]], A[t], B[t], C[t])
+                cross = segments_cross_triangles(X[tris[s, e0]], X[tris[s, e1]], A[t], B[t], C[t])
+                hit |= cross
+                edges.append(np.column_stack([tris[s[cross], e0], tris[s[cross], e1]]))
         i, j = i[hit], j[hit]
         if i.size:
             bad_cells += [owner[i], owner[j]]
 
-        # 2. boundary vertices inside cells elsewhere in the film
-        surf = self.surface
-        Xs = X[surf]
+        # 2. boundary vertices, and points along the crossing edges, inside cells elsewhere in the film
         H = X[self.cells]
         hc = H.mean(axis=1)
         hrad = float(np.sqrt(np.max(np.sum((H - hc[:, None]) ** 2, axis=2))))
-        vi, ci = _pairs(cKDTree(Xs), cKDTree(hc), hrad)
-        own = (self.cells[ci] == surf[vi][:, None]).any(axis=1)  # a vertex is on its own cells' boundary
-        vi, ci = vi[~own], ci[~own]
-        inside = _inside_hexes(Xs[vi], H[ci])
-        vi, ci = vi[inside], ci[inside]
-        keep = ~self.neighbours(surf[vi], ci)
-        vi, ci = vi[keep], ci[keep]
-        verts = np.unique(surf[vi])
-        d = self._depth(X, verts, tri, 2.0 * hrad)
-        # a vertex on the other part's surface touches it: inside by more than round-off only
-        deep = d > _CROSS_EPS * hrad
-        depth = float(d[deep].max(initial=0.0))
+        cell_tree = cKDTree(hc)
+        surf = self.surface
+        d_vert, hosts = self._inside_depth(X, X[surf], surf, surf, H, cell_tree, hrad, tri)
+        deep = d_vert > 0.0
         if deep.any():
-            sel = np.isin(surf[vi], verts[deep])
-            vi, ci = vi[sel], ci[sel]
-            bad_cells += [ci, self._cells_of(verts[deep])[1]]
-        else:
-            vi = vi[:0]
+            bad_cells += [hosts, self._cells_of(surf[deep])[1]]
+        depth = float(d_vert.max(initial=0.0))
+        edges = np.unique(np.sort(np.concatenate(edges), axis=1), axis=0)
+        if edges.size:
+            t = (np.arange(1, _EDGE_SAMPLES + 1) / (_EDGE_SAMPLES + 1))[None, :, None]
+            pts = (X[edges[:, 0]][:, None] * (1 - t) + X[edges[:, 1]][:, None] * t).reshape(-1, 3)
+            a, b = np.repeat(edges[:, 0], _EDGE_SAMPLES), np.repeat(edges[:, 1], _EDGE_SAMPLES)
+            d_edge, _ = self._inside_depth(X, pts, a, b, H, cell_tree, hrad, tri)
+            depth = max(depth, float(d_edge.max(initial=0.0)))
 
         # 3. the gap between facing parts of the surface
-        found = i.size > 0 or vi.size > 0
+        found = i.size > 0 or bool(deep.any())
         gap = -depth if found else self._gap(X, tri)
         ncells = int(np.unique(np.concatenate(bad_cells)).size) if bad_cells else 0
         return Penetration(intersecting_pairs=int(i.size), penetrated_cells=ncells, depth_mm=float(depth),
                            min_gap_mm=gap, gap_range_mm=self.gap_range)
 
-    def _depth(self, X, verts, tri, r):
-        """Distance [mm] from each vertex to the nearest boundary triangle that is not its neighbour."""
-        vi, tj = tri.pairs_with(X[verts], r)
-        keep = ~self.neighbours(verts[vi], self.owner[tj])
-        vi, tj = vi[keep], tj[keep]
-        out = np.full(verts.size, r + tri.rmax)
-        if vi.size:
-            p = X[verts[vi]]
+    def _inside_depth(self, X, P, a, b, H, cell_tree, hrad, tri):
+        """How deep each point ``P[k]`` of the surface lies inside the film away from vertices ``a[k]``, ``b[k]``.
+
+        A point on the edge ``a b`` (``a == b`` for a vertex) is inside another part of
+        the film when it is in a cell that is neighbour to neither; its depth is then its
+        distance to the nearest boundary triangle that is neighbour to neither (by more
+        than round-off: a point on that surface touches it). Returns the depths ``(k,)``
+        [mm], 0 where not inside, and the cells found holding the points.
+        """
+        out = np.zeros(len(P))
+        pi, ci = _pairs(cKDTree(P), cell_tree, hrad)
+        own = (self.cells[ci] == a[pi][:, None]).any(axis=1) | (self.cells[ci] == b[pi][:, None]).any(axis=1)
+        pi, ci = pi[~own], ci[~own]
+        inside = _inside_hexes(P[pi], H[ci])
+        pi, ci = pi[inside], ci[inside]
+        keep = ~(self.neighbours(a[pi], ci) | self.neighbours(b[pi], ci))
+        pi, ci = pi[keep], ci[keep]
+        if not pi.size:
+            return out, ci
+        k = np.unique(pi)
+        r = 2.0 * hrad
+        qi, tj = tri.pairs_with(P[k], r)
+        keep = ~(self.neighbours(a[k][qi], self.owner[tj]) | self.neighbours(b[k][qi], self.owner[tj]))
+        qi, tj = qi[keep], tj[keep]
+        d = np.full(k.size, r + tri.rmax)
+        if qi.size:
+            p = P[k][qi]
             q = point_triangle_closest(p, tri.A[tj], tri.B[tj], tri.C[tj])
-            np.minimum.at(out, vi, np.linalg.norm(p - q, axis=1))
-        return out
+            np.minimum.at(d, qi, np.linalg.norm(p - q, axis=1))
+        d[d <= _CROSS_EPS * hrad] = 0.0
+        out[k] = d
+        return out, ci[np.isin(pi, k[d > 0])]
 
     def _gap(self, X, tri):
         """Smallest distance [mm] between a boundary vertex and a facing boundary triangle within range."""

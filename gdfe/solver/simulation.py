@@ -22,7 +22,7 @@ from gdfe.solver.penetration import Penetration, PenetrationCheck
 from gdfe.solver.starts import flat_start, multilevel_start
 
 __all__ = ["Result", "ConvergenceError", "simulate", "INITS", "MULTILEVEL_CELLS", "CONTACT_LEVELS",
-           "CONTACT_LEVEL_TOL"]
+           "CONTACT_LEVEL_TOL", "CONTACT_LEVEL_ITER"]
 
 log = logging.getLogger(__name__)
 
@@ -36,6 +36,9 @@ MULTILEVEL_CELLS = 20_000
 CONTACT_LEVELS = 4
 #: Tolerance (units of h) of the added levels: their shapes are only the next level's start.
 CONTACT_LEVEL_TOL = 1e-2
+#: Iteration limit of an added level, and of the solves that make a start free of
+#: self-intersection (the same reason).
+CONTACT_LEVEL_ITER = 10
 
 
 class ConvergenceError(RuntimeError):
@@ -248,7 +251,8 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=1e-7, max_iter=
     solver = Solver(design)
     check = PenetrationCheck(design)
     acts = np.linspace(0.0, 1.0, steps + 1)
-    opts = dict(init=init, start=start, seed=seed, tol=tol, max_iter=max_iter, history=history)
+    opts = dict(init=init, start=None if start is None else (start, float(acts[1])), seed=seed, tol=tol,
+                max_iter=max_iter, history=history)
     term = Contact(design, dhat) if contact == "on" else None
     run = _run_frames(solver, acts, method, term, **opts)
     timings = {}
@@ -320,7 +324,11 @@ def _check_frames(check, frames):
 
 
 def _first_start(solver, design, init, start, seed, a):
-    """The starting shape of the first frame, at activation ``a``."""
+    """The starting shape of the first frame, at activation ``a``.
+
+    ``start`` is a given shape with the activation it is meant for, ``(V, a_start)``: at a
+    lower ``a`` it is taken that fraction of the way from the flat print.
+    """
     V = design.mesh.points.copy()
     if init == "linear":
         return solver.linearised_start(V, a)
@@ -330,35 +338,31 @@ def _first_start(solver, design, init, start, seed, a):
         solver.timings["start"] = solver.timings.get("start", 0.0) + time.perf_counter() - t_start
         return V
     if init == "given":
-        return start.copy()
+        V0, a_start = start
+        return V0.copy() if a >= a_start else V + (a / a_start) * (V0 - V)
     return flat_start(design, seed)
 
 
 def _clear_start(solver, term, init, start, seed, a, method, max_iter, depth=0):
     """A start at activation ``a`` free of self-intersection, and the iterations it took.
 
-    The first-frame start of ``init`` if it is clear (a given shape that is not is replaced
-    by the linearised start); else the contact solution at ``a / 2`` (recursively), down to
-    the flat print's own start, which is flat and clear.
+    The first-frame start of ``init`` if it is clear; else the contact solution at ``a / 2``
+    (recursively) from the start of ``init`` there (a given shape is meant for the first
+    frame: at a fraction of its activation, the same fraction of its displacement from the
+    flat print), down to the flat print's own start, which is flat and clear.
     """
     design = solver.design
     V = _first_start(solver, design, init, start, seed, a)
     if term.is_clear(V):
         return V, 0
-    if init == "given":
-        log.warning("the given starting shape passes through itself; the contact solve starts from the "
-                    "linearised start instead")
-        init = "linear"
-        V = _first_start(solver, design, init, start, seed, a)
-        if term.is_clear(V):
-            return V, 0
     if depth >= 6:
         V = flat_start(design, seed)
         if not term.is_clear(V):
             raise GdfeError("contact: the flat print itself is not free of self-intersection")
         return V, 0
     Vh, its = _clear_start(solver, term, init, start, seed, 0.5 * a, method, max_iter, depth + 1)
-    stats = solver.solve(Vh, 0.5 * a, method=method, tol=CONTACT_LEVEL_TOL, max_iter=max_iter, contact=term)
+    stats = solver.solve(Vh, 0.5 * a, method=method, tol=CONTACT_LEVEL_TOL,
+                         max_iter=min(max_iter, CONTACT_LEVEL_ITER), contact=term)
     return stats.points, its + stats.iterations
 
 
@@ -377,7 +381,9 @@ def _run_frames(solver, acts, method, term, *, init, start, seed, tol, max_iter,
             stats = solver.solve(V, a, method=method, tol=tol, max_iter=max_iter, history=history)
         else:
             a_prev = acts[k]
-            n_levels = 1 if (k == 0 and init == "given") else max(1, int(np.ceil(CONTACT_LEVELS * (a - a_prev) - 1e-9)))
+            n_levels = max(1, int(np.ceil(CONTACT_LEVELS * (a - a_prev) - 1e-9)))
+            if k == 0 and init == "given":  # a given start is meant for this frame
+                n_levels = 1
             levels = np.linspace(a_prev, a, n_levels + 1)[1:]
             for j, b in enumerate(levels):
                 if k == 0 and j == 0:
@@ -385,7 +391,7 @@ def _run_frames(solver, acts, method, term, *, init, start, seed, tol, max_iter,
                     frame_its += its
                 last = j == len(levels) - 1
                 stats = solver.solve(V, b, method=method, tol=tol if last else CONTACT_LEVEL_TOL,
-                                     max_iter=max_iter, contact=term)
+                                     max_iter=max_iter if last else min(max_iter, CONTACT_LEVEL_ITER), contact=term)
                 V = stats.points
                 if not last:
                     frame_its += stats.iterations
