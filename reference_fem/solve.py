@@ -254,6 +254,8 @@ def _newton(disc, u, state, free, scale, tol, max_iter):
     """
     u = u.copy()
     energy, f, K = state(u, True)
+    if K is None:  # the extrapolated start turns an element inside out: cut the load step
+        return False, u, 0, np.inf
     r = np.linalg.norm(f[free]) / scale
     if r < tol:
         return True, u, 0, r

@@ -73,3 +73,12 @@ def test_newton_that_does_not_converge_says_so():
     assert res.converged is False
     assert res.load_factor < 1.0
     assert res.summary()["converged"] is False
+
+
+def test_load_step_whose_extrapolated_start_inverts_an_element_is_cut():
+    # at eps* = -0.7 the start extrapolated from the last two load levels turns an element of
+    # the coarse hinge inside out (J_e <= 0, no tangent); the step is halved and the solve goes on
+    strip = hinge_mesh(1.6, 0.33, resolution="coarse")
+    res = solve_nonlinear(strip, BilayerMaterial(eigenstrain=-0.7))
+    assert res.converged and res.load_factor == 1.0
+    assert res.load_steps >= 4
