@@ -244,6 +244,7 @@ def _cost(settings):
     from studies.bench import SHEET_PIXEL, SHEET_R, mask_sheet
 
     repeats = settings["repeats"]
+    load_start = list(os.getloadavg())
     rows = []
     for kind, sizes in settings["cost"].items():
         for size in sizes:
@@ -265,7 +266,8 @@ def _cost(settings):
             row["goal"] = goal
             row["goal_met"] = bool(row["auto_ratio"] <= goal)
             rows.append(row)
-    return {"rows": rows, "machine": {"load_average": list(os.getloadavg()), "cpus": os.cpu_count(),
+    return {"rows": rows, "machine": {"load_average_start": load_start, "load_average": list(os.getloadavg()),
+                                      "cpus": os.cpu_count(),
                                       "python": platform.python_version(), "machine": platform.machine()}}
 
 

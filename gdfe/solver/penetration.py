@@ -326,6 +326,9 @@ class PenetrationCheck:
             bad_cells += [hosts, self._cells_of(surf[deep])[1]]
         depth = float(d_vert.max(initial=0.0))
         edges = np.unique(np.sort(np.concatenate(edges), axis=1), axis=0)
+        inside = np.zeros(self.n, bool)
+        inside[surf[deep]] = True
+        edges = edges[~(inside[edges[:, 0]] | inside[edges[:, 1]])]  # an end inside: measured there
         if edges.size:
             t = (np.arange(1, _EDGE_SAMPLES + 1) / (_EDGE_SAMPLES + 1))[None, :, None]
             pts = (X[edges[:, 0]][:, None] * (1 - t) + X[edges[:, 1]][:, None] * t).reshape(-1, 3)
@@ -360,15 +363,24 @@ class PenetrationCheck:
         if not pi.size:
             return out, ci
         k = np.unique(pi)
-        r = 2.0 * hrad
-        qi, tj = tri.pairs_with(P[k], r)
-        keep = ~(self.neighbours(a[k][qi], self.owner[tj]) | self.neighbours(b[k][qi], self.owner[tj]))
-        qi, tj = qi[keep], tj[keep]
-        d = np.full(k.size, r + tri.rmax)
-        if qi.size:
-            p = P[k][qi]
-            q = point_triangle_closest(p, tri.A[tj], tri.B[tj], tri.C[tj])
-            np.minimum.at(d, qi, np.linalg.norm(p - q, axis=1))
+        d = np.full(k.size, np.inf)
+        todo = np.arange(k.size)
+        for r in (0.5 * hrad, 2.0 * hrad):  # most points are near a surface: a small search first
+            qi, tj = tri.pairs_with(P[k[todo]], r)
+            kk = k[todo][qi]
+            keep = ~(self.neighbours(a[kk], self.owner[tj]) | self.neighbours(b[kk], self.owner[tj]))
+            qi, tj = qi[keep], tj[keep]
+            if qi.size:
+                p = P[k[todo]][qi]
+                q = point_triangle_closest(p, tri.A[tj], tri.B[tj], tri.C[tj])
+                dd = np.full(todo.size, np.inf)
+                np.minimum.at(dd, qi, np.linalg.norm(p - q, axis=1))
+                d[todo] = dd
+            # a distance within r is the nearest; beyond it a triangle further out may be nearer
+            todo = todo[~(d[todo] <= r)]
+            if not todo.size:
+                break
+        d[todo] = np.minimum(d[todo], 2.0 * hrad + tri.rmax)
         d[d <= _CROSS_EPS * hrad] = 0.0
         out[k] = d
         return out, ci[np.isin(pi, k[d > 0])]
