@@ -1,47 +1,40 @@
-"""Blind benchmark of the fold-angle diagnoser, and the diagnosis of the paper's Table 1.
+"""Blind benchmark of the fold-angle diagnoser on data it did not write, and the diagnosis of Table 1.
 
-Issue 5 asks that ``gdfe diagnose`` prove its claims on data whose effect it is not told.
-This study makes synthetic "measured" folding tests with a higher-fidelity forward model
-than the diagnoser's closed forms, with exactly one physical effect switched on at a random
-strength, adds Gaussian noise, runs :func:`gdfe.diagnosis.diagnose` on them, and counts how
-often it names the effect that was switched on.
+Synthetic "measured" folding tests come from the generators of
+:mod:`studies.diagnosis_generators`, none of which uses the diagnoser's closed forms: the
+nominal world is GDFE hinge simulations with Eq. 3's contraction; effects are built into the
+reference FEM's specimen (a thicker coat, a wider hinge, an elastic coat, a film that thickens),
+into GDFE with directional heating (saturation), shrink kinetics of the film (partial activation
+with the oven temperature) or film lots per print batch; and four plausible effects are outside
+the catalogue (a fixture stop, resin bleeding with the coat, unrecorded film lots,
+overheating). Every data set carries the columns a lab records (oven temperature ``T_C`` and
+print ``batch``) whether or not its effect uses them. Half of the data sets are null (no effect)
+or outside the catalogue. Gaussian noise of standard deviation sigma is added and
+:func:`gdfe.diagnosis.diagnose` is told sigma.
 
-Forward models (the effect is built into the simulation, not into a closed form):
+Scored per class:
 
-- the five effects of the catalogue: GDFE hinge specimens (:mod:`gdfe.diagnosis.forward`) at
-  16 (coarse), 24 or 32 cells across the hinge: the contraction ratio of Eq. 3 at the cured
-  coat ``d + delta`` (``cure_depth``); a meshed hinge ``L + lambda`` wide
-  (``hinge_length``); the film meshed at its thickened thickness (``film_thickening``); the
-  contraction applied over time at a rate that falls with the fold reached
-  (``saturation``); the contraction ratio of Timoshenko's bilayer with an elastic coat,
-  ``R = 1 - h kappa`` (``passive_stiffness``);
-- a cross-check, ``passive_stiffness (FEM)``: the linear 3-D reference FEM
-  (:mod:`reference_fem`) of the specimen with an elastic coat (Poisson's ratio 0.35). Its
-  fold is Timoshenko's curvature times ``L + lambda`` with ``lambda`` = 0.3-0.7 mm (the fold
-  spreads past the coat's end into the panels over about the layers' thickness; measured
-  by :func:`fem_junction`), so it carries ``hinge_length`` too: the expected answer is the
-  pair ``hinge_length+passive_stiffness``, and it is scored apart from the five.
+* **catalogue**: the diagnoser's ``best`` is the effect built in (for the FEM's elastic coat
+  also with ``hinge_length``: the FEM's fold spreads past the coat's end);
+* **null**: the verdict is ``no_gap``;
+* **outside**: the verdict is ``not_explained`` or ``partly_explained``.
 
-Design points: the 18 tests of Table 1 (``h = 0.29 mm`` fixed), and random designs of 18
-tests (``L`` uniform in 1.5-6 mm, ``d`` log-uniform in 0.1-0.5 mm, ``h`` uniform in
-0.2-0.4 mm). The nominal scale (``K``, or the FEM's eigenstrain) is drawn so that the largest
-fold of the data set without the effect lies in 2.5-3.0 rad, like Table 1's 2.88 rad.
-Effect strengths are drawn from physical ranges fixed beforehand (:data:`STRENGTHS`).
-
-Reported: the confusion matrix (true effect against the diagnoser's ``best``) and the
-accuracy at each noise level, on each design set; the held-out (LOO) RMSE after the chosen
-model against the noise level; for each data set, the effects that reproduce its noise-free
-angles within the noise level ("aliases": no method can tell those apart on that design).
-Then the diagnosis of Table 1 itself: where the gap lies, which effect(s) explain it, how
-far the held-out error shrinks.
+Reported: accuracy per class and per generator against sigma, confusion matrices (class x
+verdict; generator x named model) at sigma = 0.03 rad, each data set's *visibility* (RMS of
+the baseline fitted to its noise-free angles) and *aliases* (catalogue models that reproduce
+its noise-free angles within sigma), a sensitivity row (the thicker coat with a softer coat,
+not counted in the classes), the diagnosis of Table 1 with the noise unknown and at assumed
+noise levels, the cost of diagnosing many rows (time and peak memory of a child process), and
+the checks of the shape diagnosis that a scan is the part.
 
 Run ``python -m studies.blind_diagnosis [--out DIR] [--resolution R] [--json]`` or
-``gdfe study blind-diagnosis``; writes ``blind_diagnosis.png``, ``blind_diagnosis.json``
-and ``blind_diagnosis.md`` (the findings).
+``gdfe study blind-diagnosis``; writes ``blind_diagnosis.png``, ``.json`` and ``.md`` (the
+findings). Noise-free data sets are cached under ``DIR/cache``.
 """
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 import time
@@ -49,497 +42,599 @@ from pathlib import Path
 
 import numpy as np
 
-from gdfe._validation import GdfeError
 from gdfe.io import write_text
-from studies._common import check_resolution, finish, headline, pyplot, study_main
+from studies._common import check_resolution, finish, headline, main_of, pyplot
 
 NAME = "blind_diagnosis"
 log = logging.getLogger(__name__)
 
-#: Effects switched on, one per data set.
-TRUTHS = ("cure_depth", "hinge_length", "saturation", "passive_stiffness", "film_thickening")
-#: The FEM cross-check and the answers counted right for it.
-FEM = "passive_stiffness (FEM)"
-FEM_ANSWERS = ("passive_stiffness", "hinge_length+passive_stiffness")
-#: Ranges the strengths are drawn from (uniform; E_ratio log-uniform), fixed a priori from
-#: the physics: over-cure of tens to 150 um; hinge 0.3-1 mm wider or narrower; folds
-#: levelling off at 1.5-3 rad; coat 3x softer to 10x stiffer than the film; thickening
-#: around the volume-conserving 2 (1-R).
-STRENGTHS = {
-    "cure_depth": {"delta": (0.03, 0.15)},
-    "hinge_length": {"lambda": (0.3, 1.0)},  # with a random sign
-    "saturation": {"alpha_max": (1.5, 3.0)},
-    "passive_stiffness": {"E_ratio": (0.3, 10.0)},
-    "film_thickening": {"beta": (1.0, 3.0)},
-}
-STRENGTHS[FEM] = STRENGTHS["passive_stiffness"]
-STRENGTHS_NAME = {e: next(iter(v)) for e, v in STRENGTHS.items()}
-#: Largest fold of a data set without the effect [rad].
-MAX_FOLD = (2.5, 3.0)
-DESIGN_SETS = ("table1", "random")
-N_RANDOM = 18
-#: repetitions per (effect, design set), noise levels [rad], GDFE and FEM resolution
+#: Repetitions per (generator, design set), null repetitions, noise levels [rad], forward
+#: resolutions, rows of the cost measurement.
 SETTINGS = {
-    "coarse": {"reps": 4, "sigmas": (0.01, 0.03, 0.1), "gdfe": "coarse", "fem": "coarse"},
-    "default": {"reps": 10, "sigmas": (0.01, 0.02, 0.03, 0.05, 0.1), "gdfe": "default", "fem": "coarse"},
-    "fine": {"reps": 20, "sigmas": (0.01, 0.02, 0.03, 0.05, 0.1), "gdfe": "fine", "fem": "default"},
+    "coarse": {"reps": 2, "null_reps": 6, "sigmas": (0.01, 0.03, 0.1), "gdfe": "coarse", "fem": "coarse",
+               "rows": 2000, "scans": "coarse"},
+    "default": {"reps": 6, "null_reps": 18, "sigmas": (0.01, 0.02, 0.03, 0.05, 0.1), "gdfe": "coarse",
+                "fem": "coarse", "rows": 10000, "scans": "default"},
+    "fine": {"reps": 12, "null_reps": 36, "sigmas": (0.01, 0.02, 0.03, 0.05, 0.1), "gdfe": "default",
+             "fem": "default", "rows": 10000, "scans": "default"},
 }
 SIGMA_GOAL = 0.03
-#: Accuracy floor of the regression check on Table 1's designs (see :func:`_interpretation`).
-TABLE1_FLOOR = 0.75
-#: Version of the forward models: part of the cache key, raise it when they change.
-FORWARD_VERSION = 2
-
-
-def default_cache():
-    """Cache directory of noise-free simulated data sets: ``$GDFE_CACHE`` or ~/.cache/gdfe."""
-    return Path(os.environ.get("GDFE_CACHE", Path.home() / ".cache" / "gdfe")) / NAME
 ACCURACY_GOAL = 0.9
+#: Noise levels assumed for Table 1 [rad].
+TABLE1_SIGMAS = (0.03, 0.05, 0.1, 0.15)
+#: Version of the generators: part of the cache key, raise it when they change.
+GENERATOR_VERSION = 1
+#: A data set's effect is visible at sigma when its visibility is at least this many sigma.
+VISIBLE = 2.0
+#: Whether each class's accuracy goal is expected to hold at sigma = 0.03 rad, and why not.
+EXPECT = {
+    "catalogue": (False, "goal not met: the nonlinear FEM's film thickening changes the folds by less than the "
+                         "noise (median visibility below sigma: no method can name it), and on Table 1's single "
+                         "film thickness the FEM's elastic coat and thicker coat alias with other d-softening "
+                         "effects; see the per-generator table, its visibility and aliases"),
+    "outside": (False, "goal not met: resin bleeding that grows with the coat is reproduced within the noise by "
+                       "cure_depth+hinge_length, or is below it, on part of its data sets (aliased: no method can "
+                       "call those unexplained); compare the accuracy on the data sets without an alias "
+                       "(accuracy_unaliased)"),
+}
+#: Limits of the cost measurement: 10,000 rows in 60 s and 1 GiB.
+COST_GOAL = {"rows": 10000, "seconds": 60.0, "rss_mib": 1024.0}
 
 
-def design_points(kind, rng):
-    """``(L, d, h)`` [mm] of a design set: Table 1's, or 18 random tests."""
-    import gdfe
+def _names():
+    from studies.diagnosis_generators import GENERATORS, SENSITIVITY
 
-    if kind == "table1":
-        t = gdfe.load_folding_tests(gdfe.TABLE1)
-        return t.L.copy(), t.d.copy(), t.h.copy()
-    if kind != "random":
-        raise GdfeError(f"kind: expected one of {', '.join(DESIGN_SETS)}, got {kind!r}")
-    L = rng.uniform(1.5, 6.0, N_RANDOM)
-    d = np.exp(rng.uniform(np.log(0.1), np.log(0.5), N_RANDOM))
-    h = rng.uniform(0.2, 0.4, N_RANDOM)
-    return L, d, h
+    return list(GENERATORS) + list(SENSITIVITY)
 
 
-def draw_strength(effect, L, rng):
-    """The effect's parameter, drawn from :data:`STRENGTHS`."""
-    (name, (lo, hi)), = STRENGTHS[effect].items()
-    if name == "E_ratio":
-        return name, float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
-    v = float(rng.uniform(lo, hi))
-    if effect == "hinge_length" and rng.random() < 0.5:
-        v = -min(v, 0.5 * float(L.min()))  # a narrower hinge, never below half the shortest
-    return name, v
+def _generator(name):
+    from studies.diagnosis_generators import GENERATORS, SENSITIVITY
 
-
-def simulate(spec):
-    """Noise-free "measured" angles of one data set (the forward model with its effect)."""
-    from gdfe.diagnosis import model, simulate_model
-
-    L, d, h = spec["L"], spec["d"], spec["h"]
-    effect, value, scale = spec["effect"], spec["value"], spec["scale"]
-    if effect == FEM:
-        from reference_fem import unit_angles
-
-        a = unit_angles(L, d, h, ratios=[value], resolution=spec["fem"])[:, 0]
-        eps = scale / float(a.max())  # contraction giving the drawn largest fold
-        return eps * a, np.ones(L.size, bool), {"E_ratio": value, "eigenstrain": -eps}
-    if effect == "passive_stiffness":  # mismatch giving the drawn largest fold
-        m = model(effect)
-        params = [value, scale / float(m.predict(np.array([value, 1.0]), L, d, h).max())]
-    else:
-        x = (h / d) ** 1.5 * L / h  # Eq. 1's regressor: alpha = K x without the effect
-        params = [scale / float(x.max()), value]
-    alpha, ok = simulate_model(model(effect), params, L, d, h, resolution=spec["gdfe"])
-    return alpha, ok, dict(zip(model(effect).param_names, params))
-
-
-def _cache_path(spec):
-    """File of a data set's noise-free angles in the cache (None: no cache)."""
-    import hashlib
-    import json
-
-    root = spec.get("cache")
-    if not root:
-        return None
-    key = {k: spec[k] for k in ("effect", "value", "scale", "gdfe", "fem")}
-    key.update(L=np.round(spec["L"], 12).tolist(), d=np.round(spec["d"], 12).tolist(),
-               h=np.round(spec["h"], 12).tolist(), version=FORWARD_VERSION)
-    digest = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:24]
-    return Path(root) / f"{digest}.npz"
-
-
-def simulate_cached(spec):
-    """:func:`simulate`, read from / written to the cache when ``spec["cache"]`` is a directory."""
-    import json
-
-    path = _cache_path(spec)
-    if path is not None and path.is_file():
-        with np.load(path) as f:
-            return f["alpha"], f["converged"], json.loads(str(f["params"]))
-    clean, ok, params = simulate(spec)
-    if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.npz")
-        np.savez(tmp, alpha=clean, converged=ok, params=json.dumps(params))
-        os.replace(tmp, path)
-    return clean, ok, params
-
-
-def _job(spec):
-    """Simulate one data set and diagnose it at every noise level."""
-    import gdfe
-    from gdfe.diagnosis import diagnose, model
-    from gdfe.diagnosis.fit import fit_params
-
-    t0 = time.perf_counter()
-    clean, ok, truth_params = simulate_cached(spec)
-    t_sim = time.perf_counter() - t0
-    L, d, h = spec["L"], spec["d"], spec["h"]
-    # how visible the effect is, and which other effects reproduce the noise-free angles
-    fits_clean = {}
-    for name in ("baseline",) + TRUTHS:
-        _, rss, _ = fit_params(model(name), L, d, h, clean)
-        fits_clean[name] = float(np.sqrt(rss / L.size))
-    records = []
-    rng = np.random.default_rng(spec["noise_seed"])
-    for sigma in spec["sigmas"]:
-        noisy = clean + sigma * rng.standard_normal(clean.size)
-        tests = gdfe.FoldingTests(L=L, d=d, h=h, alpha=noisy)
-        t1 = time.perf_counter()
-        diag = diagnose(tests, check=None)
-        truth = _catalogue_name(spec["effect"])
-        truth_fit = next(f for f in diag.fits if f.name == truth)
-        records.append({
-            "effect": spec["effect"], "design": spec["design"], "rep": spec["rep"], "sigma": sigma,
-            "truth_params": truth_params, "best": diag.best.name, "candidates": diag.candidates,
-            "correct": _is_right(spec["effect"], diag.best.name),
-            "best_single": min((f for f in diag.fits if len(f.model.effects) == 1),
-                               key=lambda f: f.loo_rmse).name,
-            "baseline_loo_rmse": diag.baseline.loo_rmse, "best_loo_rmse": diag.best.loo_rmse,
-            "truth_loo_rmse": truth_fit.loo_rmse,
-            "best_error_to_truth": float(np.sqrt(np.mean((diag.best.predicted - clean) ** 2))),
-            "visibility": fits_clean["baseline"],
-            "model_error": fits_clean[truth],
-            "aliases": sorted(e for e in TRUTHS if e != truth and fits_clean[e] <= sigma),
-            "clean_fit_rmse": fits_clean, "converged": bool(ok.all()),
-            "seconds_diagnose": time.perf_counter() - t1, "seconds_simulate": t_sim,
-        })
-    return records
+    return {**GENERATORS, **SENSITIVITY}[name]
 
 
 def _specs(settings, seed=0, cache=None):
+    from studies.diagnosis_generators import SENSITIVITY
+    from studies.diagnosis_generators.nominal import DESIGN_SETS
+
     specs = []
-    for ie, effect in enumerate(TRUTHS + (FEM,)):
-        for ik, kind in enumerate(DESIGN_SETS):
-            for rep in range(settings["reps"]):
-                rng = np.random.default_rng([seed, ie, ik, rep])
-                L, d, h = design_points(kind, rng)
-                name, value = draw_strength(effect, L, rng)
-                specs.append({"effect": effect, "design": kind, "rep": rep, "L": L, "d": d, "h": h,
-                              "value": value, "scale": float(rng.uniform(*MAX_FOLD)),
-                              "sigmas": settings["sigmas"], "gdfe": settings["gdfe"],
-                              "fem": settings["fem"], "noise_seed": [seed, ie, ik, rep, 1],
+    for ig, name in enumerate(_names()):
+        g = _generator(name)
+        reps = settings["null_reps"] if g.kind == "null" else settings["reps"]
+        for ik, design in enumerate(DESIGN_SETS):
+            for rep in range(reps):
+                specs.append({"generator": name, "kind": g.kind, "sensitivity": name in SENSITIVITY,
+                              "design": design, "rep": rep, "seed": [seed, ig, ik, rep],
+                              "sigmas": tuple(settings["sigmas"]),
+                              "resolution": {"gdfe": settings["gdfe"], "fem": settings["fem"]},
                               "cache": None if cache is None else str(cache)})
     return specs
 
 
-def _catalogue_name(effect):
-    return "passive_stiffness" if effect == FEM else effect
+def _draw(spec):
+    from studies.diagnosis_generators.nominal import specimens
+
+    rng = np.random.default_rng(spec["seed"])
+    sp = specimens(spec["design"], rng)
+    return sp, _generator(spec["generator"]).draw(rng, sp)
 
 
-def _is_right(effect, best):
-    return best in FEM_ANSWERS if effect == FEM else best == effect
+def simulate_cached(spec):
+    """Noise-free angles, convergence, specimens and strengths of a data set (cached when
+    ``spec["cache"]`` is a directory)."""
+    import hashlib
+
+    from studies.diagnosis_generators import generate
+
+    sp, strengths = _draw(spec)
+    path = None
+    if spec.get("cache"):
+        key = json.dumps({"g": spec["generator"], "design": spec["design"], "seed": spec["seed"],
+                          "res": spec["resolution"], "v": GENERATOR_VERSION}, sort_keys=True)
+        path = Path(spec["cache"]) / f"{hashlib.sha256(key.encode()).hexdigest()[:24]}.npz"
+        if path.is_file():
+            with np.load(path) as f:
+                return f["alpha"], f["converged"], sp, strengths
+    alpha, ok = generate(spec["generator"], sp, strengths, spec["resolution"])
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.npz")
+        np.savez(tmp, alpha=alpha, converged=ok)
+        os.replace(tmp, path)
+    return alpha, ok, sp, strengths
 
 
-def confusion(records, rows=TRUTHS + (FEM,)):
-    """Confusion matrix: rows the true effect, columns the diagnoser's answer.
+def _tests(sp, alpha):
+    import gdfe
 
-    Columns: each effect, ``pair (with truth)``, ``pair (other)``, ``baseline`` (no effect
-    named). Returns ``(matrix (r, c) int array, column labels)``.
-    """
-    cols = list(TRUTHS) + ["pair (with truth)", "pair (other)", "baseline"]
-    M = np.zeros((len(rows), len(cols)), int)
-    for r in records:
-        i = rows.index(r["effect"])
-        b = r["best"]
-        if b in TRUTHS or b == "baseline":
-            j = cols.index(b)
-        else:
-            j = cols.index("pair (with truth)" if _catalogue_name(r["effect"]) in b.split("+")
-                           else "pair (other)")
-        M[i, j] += 1
-    return M, cols
+    return gdfe.FoldingTests(L=sp.L, d=sp.d, h=sp.h, alpha=np.asarray(alpha, float),
+                             extra={"T_C": np.array([f"{t:.1f}" for t in sp.T_C]), "batch": sp.batch})
 
 
-def _summarise(records, sigmas):
+def clean_fits(sp, alpha):
+    """RMS [rad] of every catalogue model (singles, pairs, batch) fitted to noise-free angles."""
+    from gdfe.diagnosis import Model, catalogue
+    from gdfe.diagnosis.fit import fit_params
+
+    models = catalogue(True, process=["T_C"]) + [Model(("batch",), group="batch", labels=np.unique(sp.batch))]
     out = {}
-    for design in DESIGN_SETS + ("all",):
-        rows = [r for r in records if design == "all" or r["design"] == design]
-        per = {}
-        for s in sigmas:
-            alls = [r for r in rows if r["sigma"] == s]
-            M, cols = confusion(alls)
-            rs = [r for r in alls if r["effect"] != FEM]  # exactly one catalogue effect on
-            fem = [r for r in alls if r["effect"] == FEM]
-            ident = [r for r in rs if not r["aliases"]]
-            per[f"{s:g}"] = {
-                "n": len(rs), "accuracy": float(np.mean([r["correct"] for r in rs])),
-                "accuracy_single": float(np.mean([r["best_single"] == r["effect"] for r in rs])),
-                "n_identifiable": len(ident),
-                "accuracy_identifiable": float(np.mean([r["correct"] for r in ident])) if ident else None,
-                "accuracy_aliased": (float(np.mean([r["correct"] for r in rs if r["aliases"]]))
-                                     if len(ident) < len(rs) else None),
-                "n_fem": len(fem),
-                "fem_accuracy": float(np.mean([r["correct"] for r in fem])) if fem else None,
-                "confusion": M.tolist(), "columns": cols, "rows": list(TRUTHS + (FEM,)),
-                "per_effect_accuracy": {e: float(np.mean([r["correct"] for r in alls if r["effect"] == e]))
-                                        for e in TRUTHS + (FEM,) if any(r["effect"] == e for r in alls)},
-                "best_loo_rmse_mean": float(np.mean([r["best_loo_rmse"] for r in rs])),
-                "baseline_loo_rmse_mean": float(np.mean([r["baseline_loo_rmse"] for r in rs])),
-                "truth_loo_rmse_mean": float(np.mean([r["truth_loo_rmse"] for r in rs])),
-                "best_error_to_truth_mean": float(np.mean([r["best_error_to_truth"] for r in rs])),
-                "aliased_fraction": float(np.mean([bool(r["aliases"]) for r in rs])),
-            }
-        out[design] = per
+    for m in models:
+        g = m.group_index(sp.batch) if m.group else None
+        x = sp.T_C if m.process else None
+        _, rss, _ = fit_params(m, sp.L, sp.d, sp.h, alpha, x=x, group=g)
+        out[m.name] = float(np.sqrt(rss / alpha.size))
     return out
 
 
-def fem_junction(cases=((0.15, 0.29, 3.0), (0.4, 0.29, 3.0), (0.15, 0.2, 0.5), (0.4, 0.4, 0.5)),
-                 lengths=(1.0, 2.0, 4.0, 6.0), resolution="coarse"):
-    """How the reference FEM's hinge departs from Timoshenko's ``kappa L``.
+def is_right(generator, best, verdict):
+    """Whether a diagnosis of a data set of ``generator`` is right (see the module docstring)."""
+    g = _generator(generator)
+    return best in g.answers if g.kind == "catalogue" else verdict in g.answers
 
-    For each ``(d, h, E_ratio)`` the FEM's fold per unit contraction is computed at several
-    hinge widths and fitted by a line ``kappa_fem (L + lambda)``: ``kappa_fem`` against
-    Timoshenko's curvature, and ``lambda``, the width the fold spreads past the coat's ends.
 
-    Returns
-    -------
-    list of dict
-        ``d_mm, h_mm, E_ratio, kappa_over_timoshenko, lambda_mm, max_line_error`` (the
-        largest deviation of the FEM from the line, per unit contraction).
-    """
-    from gdfe.timoshenko import bilayer_curvature
-    from reference_fem import unit_angles
+def _aliases(generator, fits, sigma):
+    """Models that reproduce a data set's noise-free angles within ``sigma`` though they are not
+    its answer (no effect of the answer in them): for a null data set none are counted (every
+    model contains the baseline), for an out-of-catalogue one every model that fits."""
+    g = _generator(generator)
+    if g.kind == "null":
+        return []
+    truth = {a.split("[")[0] for ans in g.answers for a in ans.split("+")} if g.kind == "catalogue" else set()
+    return sorted(n for n, v in fits.items()
+                  if n != "baseline" and v <= sigma and not truth & {e.split("[")[0] for e in n.split("+")})
 
-    Ls = np.asarray(lengths, float)
-    out = []
-    for d, h, r in cases:
-        a = unit_angles(Ls, np.full(Ls.size, d), np.full(Ls.size, h), ratios=[r], resolution=resolution)[:, 0]
-        k, b = np.polyfit(Ls, a, 1)
-        out.append({"d_mm": d, "h_mm": h, "E_ratio": r,
-                    "kappa_over_timoshenko": float(k / bilayer_curvature(h, d, r, 1.0)),
-                    "lambda_mm": float(b / k), "max_line_error": float(np.abs(a - (k * Ls + b)).max())})
+
+def _job(spec):
+    """Simulate one data set (or read it from the cache) and diagnose it at every noise level."""
+    from gdfe.diagnosis import diagnose
+
+    t0 = time.perf_counter()
+    clean, ok, sp, strengths = simulate_cached(spec)
+    t_sim = time.perf_counter() - t0
+    fits = clean_fits(sp, clean)
+    visibility = fits["baseline"]
+    rng = np.random.default_rng(list(spec["seed"]) + [1])
+    records = []
+    for sigma in spec["sigmas"]:
+        noisy = clean + sigma * rng.standard_normal(clean.size)
+        t1 = time.perf_counter()
+        diag = diagnose(_tests(sp, noisy), sigma=sigma)
+        right = is_right(spec["generator"], diag.best.name, diag.verdict.verdict)
+        records.append({
+            "generator": spec["generator"], "kind": spec["kind"], "sensitivity": spec["sensitivity"],
+            "design": spec["design"], "rep": spec["rep"], "sigma": sigma,
+            "strengths": strengths if spec["generator"] != "hidden_lots" else {"u": strengths["u"]},
+            "K": sp.K, "best": diag.best.name, "selected": diag.selected.name, "verdict": diag.verdict.verdict,
+            "removed": diag.verdict.removed, "correct": bool(right),
+            "visibility": visibility, "visible": bool(visibility >= VISIBLE * sigma),
+            "aliases": _aliases(spec["generator"], fits, sigma),
+            "baseline_loo_rmse": diag.baseline.loo_rmse, "best_loo_rmse": diag.best.loo_rmse,
+            "converged": bool(ok.all()), "seconds_diagnose": time.perf_counter() - t1, "seconds_simulate": t_sim,
+        })
+    return records
+
+
+#: Columns of the generator x named-model confusion matrix.
+NAMED = ("cure_depth", "hinge_length", "saturation", "passive_stiffness", "film_thickening", "partial_activation",
+         "batch", "pair with the truth", "other pair", "baseline")
+
+
+def _named(generator, best):
+    if best == "baseline":
+        return "baseline"
+    effects = [e.split("[")[0] for e in best.split("+")]
+    if len(effects) == 1:
+        return effects[0]
+    g = _generator(generator)
+    truth = {a.split("[")[0] for ans in g.answers for a in ans.split("+")} if g.kind == "catalogue" else set()
+    return "pair with the truth" if truth & set(effects) else "other pair"
+
+
+def confusions(records):
+    """``(class x verdict, generator x named model)`` confusion matrices of ``records``."""
+    from gdfe.diagnosis import VERDICTS
+    from studies.diagnosis_generators import KINDS
+
+    kinds = list(KINDS)
+    V = np.zeros((len(kinds), len(VERDICTS)), int)
+    gens = [n for n in _names() if any(r["generator"] == n for r in records)]
+    G = np.zeros((len(gens), len(NAMED)), int)
+    for r in records:
+        if not r["sensitivity"]:
+            V[kinds.index(r["kind"]), VERDICTS.index(r["verdict"])] += 1
+        G[gens.index(r["generator"]), NAMED.index(_named(r["generator"], r["best"]))] += 1
+    return {"verdict": {"rows": kinds, "columns": list(VERDICTS), "matrix": V.tolist()},
+            "named": {"rows": gens, "columns": list(NAMED), "matrix": G.tolist()}}
+
+
+def _mean(xs):
+    xs = list(xs)
+    return float(np.mean(xs)) if xs else None
+
+
+def summarise(records, sigmas):
+    """Accuracy per class, per generator and per design set at each noise level."""
+    from studies.diagnosis_generators import KINDS
+
+    out = {}
+    for s in sigmas:
+        rs = [r for r in records if r["sigma"] == s]
+        main = [r for r in rs if not r["sensitivity"]]
+        entry = {"n": len(main),
+                 "share_null_or_outside": _mean(r["kind"] != "catalogue" for r in main),
+                 "classes": {}, "generators": {}, "designs": {}}
+        for k in KINDS:
+            kr = [r for r in main if r["kind"] == k]
+            vis = [r for r in kr if r["kind"] == "null" or r["visible"]]
+            un = [r for r in kr if r["kind"] != "outside" or not r["aliases"]]
+            entry["classes"][k] = {"n": len(kr), "accuracy": _mean(r["correct"] for r in kr),
+                                   "n_visible": len(vis), "accuracy_visible": _mean(r["correct"] for r in vis),
+                                   "n_unaliased": len(un), "accuracy_unaliased": _mean(r["correct"] for r in un)}
+        for g in dict.fromkeys(r["generator"] for r in rs):
+            gr = [r for r in rs if r["generator"] == g]
+            entry["generators"][g] = {
+                "n": len(gr), "accuracy": _mean(r["correct"] for r in gr),
+                "visible": _mean(r["visible"] for r in gr), "aliased": _mean(bool(r["aliases"]) for r in gr),
+                "verdicts": {v: sum(r["verdict"] == v for r in gr) for v in dict.fromkeys(r["verdict"] for r in gr)},
+                "median_visibility": float(np.median([r["visibility"] for r in gr]))}
+        for dset in dict.fromkeys(r["design"] for r in main):
+            dr = [r for r in main if r["design"] == dset]
+            entry["designs"][dset] = {k: _mean(r["correct"] for r in dr if r["kind"] == k) for k in KINDS}
+        entry["confusion"] = confusions(rs)
+        out[f"{s:g}"] = entry
     return out
 
 
 def table1_findings(resolution="coarse"):
-    """Diagnose Table 1 and say in words where the gap lies, which effect explains it, and
-    how far the held-out error shrinks."""
+    """Diagnose Table 1 with the noise unknown (the paper states none) and at assumed noise
+    levels, and say what each verdict rests on."""
     import gdfe
     from gdfe.diagnosis import diagnose
 
     diag = diagnose(gdfe.TABLE1, check=resolution)
     d = diag.as_dict()
     b, best = diag.baseline, diag.best
-    singles = [f for f in diag.fits if len(f.model.effects) == 1]
-    top_single = min(singles, key=lambda f: f.loo_rmse)
-    params = ", ".join(f"{k} = {v:.3g}" for k, v in best.param_dict().items())
-    sp = ", ".join(f"{k} = {v:.3g}" for k, v in top_single.param_dict().items())
+    params = ", ".join(f"{p['name']} = {p['value']:.3g}" + (f" +- {p['se']:.2g}" if p["se"] is not None else "")
+                       for p in best.parameters())
+    assumed = {}
+    for s in TABLE1_SIGMAS:
+        ds = diagnose(gdfe.TABLE1, sigma=s)
+        assumed[f"{s:g}"] = {"verdict": ds.verdict.verdict, "best": ds.best.name, "text": ds.verdict.text}
+    need_b = diag.lack_of_fit["baseline"]["sigma_needed"]
+    need = diag.lack_of_fit["best"]["sigma_needed"]
     text = [
-        f"Baseline (Eq. 1-3 refitted, K = {b.params[0]:.4f}): RMSE {b.rmse:.3f} rad, LOO RMSE "
-        f"{b.loo_rmse:.3f} rad, R^2 {d['baseline']['r2']:.2f}. Its closed form equals GDFE solves of "
-        f"the 18 tests within {d['gdfe_check']['baseline']['max_abs_diff']:.3f} rad.",
+        f"Table 1 with the noise unknown (the paper reports none, and no test is repeated): verdict "
+        f"{diag.verdict.verdict}. {diag.verdict.text}",
+        f"Baseline (Eq. 1-3 refitted, K = {b.params[0]:.4f} +- {b.se[0]:.2g}): RMSE {b.rmse:.3f} rad, LOO RMSE "
+        f"{b.loo_rmse:.3f} rad, R^2 {d['baseline']['r2']:.2f}; its closed form equals GDFE solves of the tests "
+        f"within {d['gdfe_check']['baseline']['max_abs_diff']:.3f} rad.",
+        f"Best: {best.name} ({params}): LOO RMSE {best.loo_rmse:.3f} rad, {100 * diag.shrink(best):.0f} % of the "
+        f"baseline's held-out RMSE removed; not ruled out: {', '.join(diag.candidates)}.",
+        "What it says about the noise: the baseline is within the noise only if sigma >= "
+        f"{need_b:.3g} rad, {best.name} only if sigma >= {need:.3g} rad. Assumed noise: "
+        + "; ".join(f"sigma = {s} rad -> {v['verdict']} ({v['best']})" for s, v in assumed.items())
+        + ". The paper states no measurement error, so which of these holds is for the noise of the "
+          "angle measurement to say (give it with --sigma).",
         "Where: " + diag.regime,
-        f"Which effect: the best single effect is {top_single.name} ({sp}; LOO RMSE "
-        f"{top_single.loo_rmse:.3f} rad, {100 * diag.shrink(top_single):.0f} % of the baseline's held-out "
-        f"error removed). The best model overall is {best.name} ({params}): LOO RMSE "
-        f"{best.loo_rmse:.3f} rad, {100 * diag.shrink(best):.0f} % removed; not ruled out by the held-out "
-        f"errors: {', '.join(diag.candidates)}.",
-        "After it: " + diag.regime_best,
+        "After the best model: " + diag.regime_best,
     ]
-    if diag.check and diag.check.get("best"):
-        c = diag.check["best"]
-        text.append(f"The best model's closed form equals GDFE solves with the effects built in within "
-                    f"{c['max_abs_diff']:.3f} rad.")
-    return d, text
+    for w in diag.warnings:
+        text.append("Warning: " + w)
+    return {**d, "assumed_noise": assumed}, text
 
 
-def run(resolution="default", out=None, n_jobs=None, reps=None, sigmas=None, cache=True):
-    """Run the blind benchmark and the Table 1 diagnosis.
+def cost(rows, out, sigma=0.03, seed=0):
+    """Time and peak memory of ``gdfe diagnose`` on ``rows`` random tests, in a child process.
+
+    The tests are random designs (``L`` 1.5-6 mm, ``d`` 0.1-0.5 mm, ``h`` 0.2-0.4 mm) with an
+    oven temperature column and three batches, angles of a cure-depth world plus noise. The
+    child runs ``python -m gdfe diagnose FILE --sigma S --check none --json OUT`` and reports
+    its own wall time and peak resident memory (``resource.getrusage``).
+
+    Returns
+    -------
+    dict
+        ``rows``, ``seconds``, ``peak_rss_mib``, ``verdict``, ``best``, ``load`` (1-minute load
+        average before the run), ``command``.
+    """
+    import subprocess
+    import sys
+
+    rng = np.random.default_rng(seed)
+    L = rng.uniform(1.5, 6.0, rows)
+    d = np.exp(rng.uniform(np.log(0.1), np.log(0.5), rows))
+    h = rng.uniform(0.2, 0.4, rows)
+    T = rng.uniform(120.0, 160.0, rows)
+    batch = rng.choice(["b1", "b2", "b3"], rows)
+    alpha = 0.05 * (h / (d + 0.08)) ** 1.5 * L / h + sigma * rng.standard_normal(rows)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    csv = out / f"cost_{rows}.csv"
+    lines = ["L_mm,d_mm,h_mm,alpha_rad,T_C,batch"]
+    lines += [f"{a:.5f},{b:.5f},{c:.5f},{e:.6f},{t:.2f},{g}" for a, b, c, e, t, g in zip(L, d, h, alpha, T, batch)]
+    write_text(csv, "\n".join(lines) + "\n")
+    js = out / f"cost_{rows}.json"
+    child = ("import json, resource, sys, time\n"
+             "from gdfe.cli import main\n"
+             "t0 = time.perf_counter()\n"
+             "rc = main(sys.argv[1:])\n"
+             "dt = time.perf_counter() - t0\n"
+             "rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0\n"
+             "print(json.dumps({'rc': rc, 'seconds': dt, 'peak_rss_mib': rss}))\n")
+    args = ["diagnose", str(csv), "--sigma", f"{sigma:g}", "--check", "none", "--json", str(js)]
+    load = os.getloadavg()[0]
+    done = subprocess.run([sys.executable, "-c", child, *args], capture_output=True, text=True, check=True)
+    m = json.loads(done.stdout.strip().splitlines()[-1])
+    d = json.loads(js.read_text())
+    return {"rows": rows, "seconds": m["seconds"], "peak_rss_mib": m["peak_rss_mib"], "rc": m["rc"],
+            "verdict": d["verdict"], "best": d["best"], "load": load, "cores": os.cpu_count(),
+            "command": "gdfe " + " ".join(args)}
+
+
+def scan_checks(resolution="default"):
+    """The cases the shape diagnosis's scan-is-the-part thresholds rest on, and the exact-copy floor.
+
+    Scans (surface samples of GDFE shapes) of the three-hinge strip of the shape tests, the
+    Figure 6 hinge (L = 1.6 mm) and (at ``"default"``) the tube example, each with its own
+    region(s) changed, and scans of one part against another's design; for each, the relative
+    residual and the coverage against the nominal shape and after the common-factor search
+    (:func:`gdfe.diagnosis.diagnose_shape`). Then the exact copy of the 1.6 mm hinge's vertices
+    with two cell layers: its ICP residual with and without the vertices inside the film.
+    """
+    import gdfe
+    from gdfe.diagnosis import Surface, align_icp, design_regions, diagnose_shape
+    from gdfe.diagnosis import shape as shp
+    from gdfe.io import surface_faces
+
+    strip = gdfe.from_rows(["RRRTTRRRRRTTRRTTRRRRRR"] * 2, R=0.8, pixel=0.25, nz=1)
+    hinge = gdfe.hinge(1.6, d=0.33)
+    parts = {"strip": strip, "hinge": hinge}
+    if resolution != "coarse":
+        parts["tube"] = gdfe.load_design(Path(__file__).resolve().parents[1] / "docs/examples/tube.toml")[0]
+    rng = np.random.default_rng(0)
+
+    def scan(des, R=None, n=700):
+        pts = gdfe.simulate(des if R is None else des.with_R(R)).points
+        smp = Surface(pts, des, per_edge=6).samples
+        return smp[rng.choice(len(smp), min(n, len(smp)), replace=False)]
+
+    def changed(des, region, R):
+        Rc = des.R.copy()
+        Rc[design_regions(des)[region]] = R
+        return Rc
+
+    cases = [("strip", "strip, hinge_2 R 0.8 -> 1.0", scan(strip, changed(strip, "hinge_2", 1.0)), True),
+             ("strip", "strip, hinge_2 R 0.8 -> 0.6", scan(strip, changed(strip, "hinge_2", 0.6)), True),
+             ("strip", "strip, hinge_2 R 0.8 -> 0.4", scan(strip, changed(strip, "hinge_2", 0.4)), True),
+             ("hinge", "hinge, R 0.69 -> 0.5", scan(hinge, changed(hinge, "hinge", 0.5)), True),
+             ("hinge", "hinge, R 0.69 -> 0.9", scan(hinge, changed(hinge, "hinge", 0.9)), True),
+             ("strip", "the hinge against the strip", gdfe.simulate(hinge).points, False),
+             ("hinge", "the strip against the hinge", gdfe.simulate(strip).points, False)]
+    if "tube" in parts:
+        tube = parts["tube"]
+        cases += [("tube", "tube, hinge_3 unfolded", scan(tube, changed(tube, "hinge_3", 1.0), 1500), True),
+                  ("tube", "tube, every hinge at R 0.8", scan(tube, np.where(tube.R < 1, 0.8, 1.0), 1500), True),
+                  ("tube", "the hinge against the tube", gdfe.simulate(hinge).points, False),
+                  ("tube", "the strip against the tube", scan(strip), False),
+                  ("strip", "the tube against the strip", scan(tube, None, 1500), False)]
+    rows = []
+    for part, label, cloud, same in cases:
+        t0 = time.perf_counter()
+        res = diagnose_shape(parts[part], cloud, correct=False)
+        rows.append({"case": label, "same_part": same, "matches": res.matches,
+                     "relative_residual": res.match["relative_residual"], "coverage": res.match["coverage"],
+                     "factor": res.match["factor"], "simulations": res.n_simulations,
+                     "seconds": time.perf_counter() - t0, "right": res.matches == same})
+    des = gdfe.hinge(1.6, d=0.33, nz=2)
+    pts = gdfe.simulate(des).points
+    surf = Surface(pts, des)
+    on = np.unique(surface_faces(des)[0])
+    floor = {"n_vertices": int(len(pts)), "n_surface_vertices": int(on.size),
+             "icp_rms_all_vertices_mm": align_icp(pts, surf)[2], "icp_rms_surface_vertices_mm": align_icp(pts[on], surf)[2],
+             "half_thickness_mm": float(des.mesh.spacing[2] * 1.0)}
+    return {"cases": rows, "exact_copy": floor,
+            "thresholds": {"residual": shp.MATCH_RESIDUAL, "coverage": shp.MATCH_COVERAGE,
+                           "clear_mismatch": list(shp.CLEAR_MISMATCH), "factors": list(shp.FACTORS)}}
+
+
+def run(resolution="default", out=None, n_jobs=None, reps=None, sigmas=None, cache=True, parts=None):
+    """Run the blind benchmark, the Table 1 diagnosis, the cost measurement and the scan checks.
 
     Parameters
     ----------
     resolution : {"coarse", "default", "fine"}
-        Repetitions, noise levels and forward-model resolution (:data:`SETTINGS`).
+        Repetitions, noise levels, forward resolutions and rows of the cost run (:data:`SETTINGS`).
     out : path, optional
-        Directory for ``blind_diagnosis.png``, ``.json`` and ``.md``.
+        Directory for ``blind_diagnosis.png``, ``.json``, ``.md`` and the cache.
     n_jobs : int, optional
         Worker processes (default: all cores).
     reps, sigmas : optional
-        Override the repetitions per (effect, design set) and the noise levels [rad].
+        Override the repetitions per (generator, design set) (the null gets three times as many)
+        and the noise levels [rad].
     cache : bool or path
-        Keep the noise-free simulated data sets in a cache directory (default
-        :func:`default_cache`) and reuse them; False simulates everything afresh.
+        Keep the noise-free data sets in ``out/cache`` (or the directory given) and reuse them.
+    parts : set of str, optional
+        Parts to run among ``{"benchmark", "table1", "cost", "scans"}`` (default all).
     """
     from gdfe.parallel import parallel_map
 
     check_resolution(resolution)
+    parts = {"benchmark", "table1", "cost", "scans"} if parts is None else set(parts)
     settings = dict(SETTINGS[resolution])
     if reps is not None:
-        settings["reps"] = int(reps)
+        settings["reps"], settings["null_reps"] = int(reps), 3 * int(reps)
     if sigmas is not None:
         settings["sigmas"] = tuple(float(s) for s in sigmas)
     t0 = time.perf_counter()
-    cache_dir = (default_cache() if cache is True else Path(cache)) if cache else None
-    specs = _specs(settings, cache=cache_dir)
-    records = [r for rs in parallel_map(_job, specs, n_jobs=n_jobs, desc="blind data sets") for r in rs]
-    summary = _summarise(records, settings["sigmas"])
-    table1, findings = table1_findings(settings["gdfe"])
-    junction = fem_junction(resolution=settings["fem"])
-    findings += _interpretation(table1, summary, junction)
-    goal = f"{SIGMA_GOAL:g}"
-    acc = {k: summary[k][goal]["accuracy"] for k in summary} if goal in summary["all"] else {}
-    result = {
-        "study": NAME, "figure": "issue 5", "resolution": resolution,
-        "title": "blind benchmark of the fold-angle diagnoser; diagnosis of Table 1",
-        "settings": {**settings, "strengths": STRENGTHS, "max_fold": MAX_FOLD, "truths": TRUTHS,
-                     "design_sets": DESIGN_SETS},
-        "summary_by_design": summary, "records": records, "table1": table1, "fem_junction": junction,
-        "findings": findings,
-        "converged": all(r["converged"] for r in records),
-        "seconds": time.perf_counter() - t0,
-    }
+    cache_dir = None
+    if cache:
+        cache_dir = Path(cache) if cache is not True else (Path(out) / "cache" if out is not None else None)
+    result = {"study": NAME, "figure": "issue 12", "resolution": resolution,
+              "title": "blind benchmark of the fold-angle diagnoser on independent generators; Table 1",
+              "settings": {**settings, "visible": VISIBLE, "generator_version": GENERATOR_VERSION}}
     heads = []
-    if acc:
-        for k in ("all", "random"):
-            heads.append(headline(f"accuracy at sigma = {goal} rad ({k} designs)", acc[k],
-                                  tol=ACCURACY_GOAL, kind="ge", paper_text="issue 5 goal: >= 0.9"))
-        t1 = summary["table1"][goal]
-        heads.append(headline(
-            f"accuracy at sigma = {goal} rad (table1 designs)", acc["table1"], tol=TABLE1_FLOOR, kind="ge",
-            paper_text="issue 5 goal: >= 0.9",
-            note=(f"Table 1's designs have one film thickness, on which cure_depth, film_thickening and "
-                  f"passive_stiffness alias ({100 * t1['aliased_fraction']:.0f} % of its data sets); checked "
-                  f"against a floor of {TABLE1_FLOOR:g}, the goal is met on the data sets without an alias")))
-        if t1["accuracy_identifiable"] is not None:
-            heads.append(headline(f"accuracy at sigma = {goal} rad (table1 designs, no alias)",
-                                  t1["accuracy_identifiable"], tol=ACCURACY_GOAL, kind="ge",
-                                  paper_text="issue 5 goal: >= 0.9"))
-    heads += [
-        headline("Table 1 baseline LOO RMSE [rad]", table1["baseline"]["loo_rmse"], tol=1.0, kind="le",
-                 unit="rad", paper_text="K = 0.3706, R^2 ~ 0.8 (paper)"),
-        headline(f"Table 1 best model ({table1['best']}) LOO RMSE [rad]", table1["best_detail"]["loo_rmse"],
-                 tol=table1["baseline"]["loo_rmse"], kind="le", unit="rad"),
-        headline("Table 1 held-out error removed by the best model", table1["best_detail"]["shrink"],
-                 tol=0.0, kind="ge"),
-    ]
-    result["headlines"] = heads
-    result["summary"] = {
-        "paper": "The paper fits Eq. 1 to Table 1 (K = 0.3706, R^2 around 0.8) and diagnoses nothing.",
-        "ours": (f"blind accuracy at sigma = {goal} rad: " + ", ".join(f"{k} {v:.2f}" for k, v in acc.items())
-                 + f"; Table 1: best {table1['best']}, LOO RMSE {table1['baseline']['loo_rmse']:.3f} -> "
-                 f"{table1['best_detail']['loo_rmse']:.3f} rad"),
-        "verdict": findings[2],
-        "discrepancy": _alias_note(summary, goal),
-    }
-    return finish(result, out, plot) if out is None else _finish_md(finish(result, out, plot), out)
-
-
-def _interpretation(table1, summary, junction):
-    """What the Table 1 diagnosis means, read against the benchmark and the FEM."""
     goal = f"{SIGMA_GOAL:g}"
-    best = table1["best_detail"]
-    lines = []
-    if goal in summary["table1"]:
-        st = summary["table1"][goal]
-        acc_al = st["accuracy_aliased"]
-        lines.append(
-            f"Caveat from the benchmark: on Table 1's own design points (one film thickness) "
-            f"{100 * st['aliased_fraction']:.0f} % of the synthetic data sets at sigma = {goal} rad have "
-            f"another single effect that reproduces their noise-free angles to within the noise RMS "
-            f"(cure_depth, film_thickening and passive_stiffness soften the d-dependence alike when h is "
-            f"fixed), so telling them apart there rests on differences below the noise"
-            + (f" (named right in {100 * acc_al:.0f} % of those here)" if acc_al is not None else "")
-            + f"; tests at a second film thickness separate them (random designs, h = 0.2-0.4 mm: "
-            f"accuracy {summary['random'][goal]['accuracy']:.2f}, aliased fraction "
-            f"{100 * summary['random'][goal]['aliased_fraction']:.0f} %). The Table 1 diagnosis is read "
-            f"accordingly: the d-softening part of its best pair may be any of these three.")
-    lam = best["params"].get("lambda")
-    if lam is not None and junction:
-        lo = min(j["lambda_mm"] for j in junction)
-        hi = max(j["lambda_mm"] for j in junction)
-        lines.append(
-            f"The fitted lambda = {lam:.2f} mm is {lam / hi:.0f}-{lam / lo:.0f} times the width over which the "
-            f"3-D reference FEM spreads a fold past the coat's ends ({lo:.2f}-{hi:.2f} mm), and comparable to "
-            f"the hinges themselves (L = 1.2-5.6 mm): the data carry a part of the fold that does not grow "
-            f"with L; hinge_length is the catalogue's closest description of it, not proof of a wider hinge.")
-    return lines
+    if "cost" in parts:  # first, so that no worker of the benchmark shares the machine with it
+        c = cost(settings["rows"], Path(out) if out is not None else Path("out") / NAME)
+        result["cost"] = c
+        heads.append(headline(f"diagnosis of {c['rows']} rows [s]", c["seconds"], tol=COST_GOAL["seconds"],
+                              kind="le", unit="s", paper_text="issue 12 goal: 10,000 rows in <= 60 s"))
+        heads.append(headline(f"peak memory of the {c['rows']}-row diagnosis [MiB]", c["peak_rss_mib"],
+                              tol=COST_GOAL["rss_mib"], kind="le", unit="MiB",
+                              paper_text="issue 12 goal: <= 1 GiB"))
+    records = []
+    if "benchmark" in parts:
+        from studies.diagnosis_generators import GENERATORS, SENSITIVITY
 
-
-def _alias_note(summary, goal):
-    if goal not in summary["all"]:
-        return ""
-    s = summary["table1"][goal]
-    return (f"On Table 1's design points (h fixed) {100 * s['aliased_fraction']:.0f} % of the data sets have "
-            f"an effect other than the true one that reproduces the noise-free angles within the noise; "
-            f"accuracy there is {s['accuracy']:.2f}, on identifiable sets {s['accuracy_identifiable']}.")
-
-
-def _finish_md(result, out):
-    lines = [f"# Blind diagnosis benchmark ({result['resolution']})", ""]
-    for design, per in result["summary_by_design"].items():
-        lines += [f"## Design set: {design}", ""]
-        for s, v in per.items():
-            fmt = (lambda x: "-" if x is None else f"{x:.2f}")
-            lines.append(f"sigma = {s} rad: accuracy {v['accuracy']:.2f} over {v['n']} data sets with one "
-                         f"catalogue effect ({fmt(v['accuracy_identifiable'])} on the {v['n_identifiable']} "
-                         f"without an alias, {fmt(v['accuracy_aliased'])} on the others); FEM cross-check "
-                         f"{fmt(v['fem_accuracy'])} over {v['n_fem']}; mean held-out (LOO) RMSE: baseline "
-                         f"{v['baseline_loo_rmse_mean']:.3f}, chosen model {v['best_loo_rmse_mean']:.3f}, "
-                         f"true model {v['truth_loo_rmse_mean']:.3f} rad")
-            lines += ["", "| true \\ named | " + " | ".join(v["columns"]) + " |",
-                      "|---|" + "---|" * len(v["columns"])]
-            for name, row in zip(v["rows"], v["confusion"]):
-                lines.append(f"| {name} | " + " | ".join(str(x) for x in row) + " |")
-            lines.append("")
-    lines += ["## Table 1", ""] + [f"- {t}" for t in result["findings"]]
-    write_text(Path(out, f"{NAME}.md"), "\n".join(lines) + "\n")
+        specs = _specs(settings, cache=cache_dir)
+        records = [r for rs in parallel_map(_job, specs, n_jobs=n_jobs, desc="blind data sets") for r in rs]
+        summary = summarise(records, settings["sigmas"])
+        result.update(accuracy=summary, records=records,
+                      generators={n: {"kind": g.kind, "answers": list(g.answers), "forward": g.forward,
+                                      "ranges": {k: list(v) for k, v in g.ranges.items()},
+                                      "sensitivity": n in SENSITIVITY}
+                                  for n, g in {**GENERATORS, **SENSITIVITY}.items()})
+        if goal in summary:
+            for k, v in summary[goal]["classes"].items():
+                heads.append(headline(f"accuracy at sigma = {goal} rad: {k}", v["accuracy"], tol=ACCURACY_GOAL,
+                                      kind="ge", paper_text="issue 12 goal: >= 0.9 in every class",
+                                      expect=EXPECT.get(k, (True, ""))[0], note=EXPECT.get(k, (True, ""))[1]))
+            heads.append(headline("share of null or out-of-catalogue data sets", summary[goal]["share_null_or_outside"],
+                                  tol=0.4, kind="ge", paper_text="issue 12: >= 40 %"))
+    if "table1" in parts:
+        t1, findings = table1_findings(settings["gdfe"])
+        result["table1"], result["findings"] = t1, findings
+        heads.append(headline("Table 1 baseline LOO RMSE [rad]", t1["baseline"]["loo_rmse"], tol=1.0, kind="le",
+                              unit="rad", paper_text="K = 0.3706, R^2 ~ 0.8 (paper)"))
+    if "scans" in parts:
+        sc = scan_checks(settings["scans"])
+        result["scan_checks"] = sc
+        heads.append(headline("scans told apart (the part or not)", float(np.mean([c["right"] for c in sc["cases"]])),
+                              paper=1.0, kind="eq"))
+    result["headlines"] = heads
+    result["converged"] = all(r["converged"] for r in records)
+    result["seconds"] = time.perf_counter() - t0
+    result["summary"] = _summary_sentences(result)
+    if out is None:
+        return result
+    finish(result, out, plot)
+    _write_md(result, out)
     return result
 
 
+def _summary_sentences(result):
+    goal = f"{SIGMA_GOAL:g}"
+    s = result.get("accuracy")
+    parts = []
+    if isinstance(s, dict) and goal in s:
+        acc = s[goal]["classes"]
+        parts.append("accuracy at sigma = 0.03 rad: " + ", ".join(f"{k} {v['accuracy']:.2f}" for k, v in acc.items()))
+    if "table1" in result:
+        parts.append(f"Table 1: {result['table1']['verdict']} with the noise unknown")
+    if "cost" in result:
+        parts.append(f"{result['cost']['rows']} rows in {result['cost']['seconds']:.1f} s, "
+                     f"{result['cost']['peak_rss_mib']:.0f} MiB")
+    return {"paper": "The paper fits Eq. 1 to Table 1 and diagnoses nothing.", "ours": "; ".join(parts),
+            "verdict": (result.get("findings") or [""])[0], "discrepancy": ""}
+
+
+def _fmt(x):
+    return "-" if x is None else f"{x:.2f}"
+
+
+def _write_md(result, out):
+    lines = [f"# Blind diagnosis benchmark ({result['resolution']})", ""]
+    s = result.get("accuracy")
+    if s:
+        lines += ["## Generators", ""]
+        for n, g in result["generators"].items():
+            lines.append(f"- `{n}` ({g['kind']}{', sensitivity' if g['sensitivity'] else ''}): {g['forward']}; "
+                         f"right: {', '.join(g['answers'])}; ranges {g['ranges']}")
+        lines += ["", "## Accuracy per class against sigma", "",
+                  "| sigma | " + " | ".join(s[next(iter(s))]["classes"]) + " | share null/outside |",
+                  "|---|" + "---|" * (len(s[next(iter(s))]["classes"]) + 1)]
+        for sig, e in s.items():
+            lines.append(f"| {sig} | " + " | ".join(
+                f"{_fmt(c['accuracy'])} ({c['n']}; visible {_fmt(c['accuracy_visible'])}, unaliased "
+                f"{_fmt(c['accuracy_unaliased'])})" for c in e["classes"].values())
+                + f" | {e['share_null_or_outside']:.2f} |")
+        lines += ["", "## Accuracy per generator against sigma", "",
+                  "| generator | " + " | ".join(s) + " | median visibility [rad] | aliased at 0.03 |",
+                  "|---|" + "---|" * (len(s) + 2)]
+        goal = f"{SIGMA_GOAL:g}"
+        for g in s[next(iter(s))]["generators"]:
+            vis = s[next(iter(s))]["generators"][g]["median_visibility"]
+            al = s[goal]["generators"][g]["aliased"] if goal in s else None
+            lines.append(f"| {g} | " + " | ".join(_fmt(e["generators"][g]["accuracy"]) for e in s.values())
+                         + f" | {vis:.3f} | {_fmt(al)} |")
+        if goal in s:
+            c = s[goal]["confusion"]
+            for key, title in (("verdict", "class x verdict"), ("named", "generator x named model")):
+                m = c[key]
+                lines += ["", f"## Confusion at sigma = {goal} rad: {title}", "",
+                          "| | " + " | ".join(m["columns"]) + " |", "|---|" + "---|" * len(m["columns"])]
+                for row, vals in zip(m["rows"], m["matrix"]):
+                    lines.append(f"| {row} | " + " | ".join(str(v) for v in vals) + " |")
+    if "cost" in result:
+        c = result["cost"]
+        lines += ["", "## Cost", "", f"`{c['command']}`: {c['rows']} rows in {c['seconds']:.1f} s, peak RSS "
+                  f"{c['peak_rss_mib']:.0f} MiB (load {c['load']:.2f} on {c['cores']} cores before the run); "
+                  f"verdict {c['verdict']}, best {c['best']}."]
+    if "scan_checks" in result:
+        sc = result["scan_checks"]
+        lines += ["", "## Is the scan the part?", "", "| case | same part | matches | relative residual | coverage | "
+                  "factor | simulations | s |", "|---|---|---|---|---|---|---|---|"]
+        for r in sc["cases"]:
+            lines.append(f"| {r['case']} | {r['same_part']} | {r['matches']} | {r['relative_residual']:.3f} | "
+                         f"{r['coverage']:.2f} | {r['factor']:.2f} | {r['simulations']} | {r['seconds']:.1f} |")
+        f = sc["exact_copy"]
+        lines += ["", f"Exact copy of the 1.6 mm hinge's {f['n_vertices']} vertices (nz = 2) through ICP: RMS "
+                  f"{1000 * f['icp_rms_all_vertices_mm']:.1f} um; its {f['n_surface_vertices']} surface vertices "
+                  f"alone: {f['icp_rms_surface_vertices_mm']:.2g} mm (the others lie inside the film, "
+                  f"{1000 * f['half_thickness_mm']:.0f} um from either face)."]
+    if "findings" in result:
+        lines += ["", "## Table 1", ""] + [f"- {t}" for t in result["findings"]]
+    write_text(Path(out, f"{NAME}.md"), "\n".join(lines) + "\n")
+
+
 def plot(result, out):
-    """Confusion matrices at the goal noise level, accuracy and held-out error against noise."""
+    """Class x verdict confusion at sigma = 0.03 rad, accuracy per class and per generator
+    against sigma."""
     plt = pyplot()
-    summ = result["summary_by_design"]
-    sigmas = [float(s) for s in summ["all"]]
-    goal = f"{SIGMA_GOAL:g}" if f"{SIGMA_GOAL:g}" in summ["all"] else next(iter(summ["all"]))
-    fig, axes = plt.subplots(1, 4, figsize=(21, 4.8), gridspec_kw={"width_ratios": [1.3, 1.3, 1, 1]})
-    for ax, design in zip(axes[:2], DESIGN_SETS):
-        v = summ[design][goal]
-        M = np.array(v["confusion"])
+    s = result.get("accuracy")
+    fig, axes = plt.subplots(1, 3, figsize=(18, 4.8), gridspec_kw={"width_ratios": [1, 1, 1.3]})
+    if s:
+        goal = f"{SIGMA_GOAL:g}" if f"{SIGMA_GOAL:g}" in s else next(iter(s))
+        m = s[goal]["confusion"]["verdict"]
+        M = np.array(m["matrix"])
+        ax = axes[0]
         ax.imshow(M, cmap="Blues")
         for i in range(M.shape[0]):
             for j in range(M.shape[1]):
                 ax.text(j, i, str(M[i, j]), ha="center", va="center",
                         color="white" if M[i, j] > M.max() / 2 else "black")
-        ax.set_xticks(range(len(v["columns"])), v["columns"], rotation=40, ha="right", fontsize=8)
-        ax.set_yticks(range(len(v["rows"])), v["rows"], fontsize=8)
-        ax.set_title(f"{design} designs, sigma = {goal} rad: accuracy {v['accuracy']:.2f}", fontsize=10)
-    ax = axes[2]
-    for design, m in zip(DESIGN_SETS + ("all",), "os^"):
-        ax.plot(sigmas, [summ[design][f"{s:g}"]["accuracy"] for s in sigmas], marker=m, label=design)
-    ax.axhline(ACCURACY_GOAL, color="0.5", ls="--", lw=0.8)
-    ax.set(xscale="log", xlabel="noise sigma [rad]", ylabel="accuracy (best = true effect)", ylim=(0, 1.02))
-    ax.legend(fontsize=8)
-    ax = axes[3]
-    for design, col in zip(DESIGN_SETS, ("C0", "C1")):
-        ax.plot(sigmas, [summ[design][f"{s:g}"]["best_loo_rmse_mean"] for s in sigmas], "o-", color=col,
-                label=f"{design}: after the chosen model")
-        ax.plot(sigmas, [summ[design][f"{s:g}"]["baseline_loo_rmse_mean"] for s in sigmas], "s--",
-                color=col, alpha=0.6, label=f"{design}: baseline")
-    ax.plot(sigmas, sigmas, color="k", lw=0.8, label="noise level")
-    ax.set(xscale="log", yscale="log", xlabel="noise sigma [rad]", ylabel="mean LOO RMSE [rad]")
-    ax.legend(fontsize=7)
+        ax.set_xticks(range(len(m["columns"])), m["columns"], rotation=30, ha="right", fontsize=8)
+        ax.set_yticks(range(len(m["rows"])), m["rows"], fontsize=9)
+        ax.set_title(f"class x verdict at sigma = {goal} rad", fontsize=10)
+        sig = [float(k) for k in s]
+        ax = axes[1]
+        for k, mk in zip(s[goal]["classes"], "os^"):
+            ax.plot(sig, [s[f"{x:g}"]["classes"][k]["accuracy"] for x in sig], marker=mk, label=k)
+        ax.axhline(ACCURACY_GOAL, color="0.5", ls="--", lw=0.8)
+        ax.set(xscale="log", xlabel="noise sigma [rad]", ylabel="accuracy", ylim=(0, 1.02))
+        ax.legend(fontsize=8)
+        ax = axes[2]
+        for g in s[goal]["generators"]:
+            ax.plot(sig, [s[f"{x:g}"]["generators"][g]["accuracy"] for x in sig], marker=".", label=g)
+        ax.axhline(ACCURACY_GOAL, color="0.5", ls="--", lw=0.8)
+        ax.set(xscale="log", xlabel="noise sigma [rad]", ylabel="accuracy per generator", ylim=(0, 1.02))
+        ax.legend(fontsize=6, ncol=2)
     fig.tight_layout()
     fig.savefig(Path(out) / f"{NAME}.png", dpi=110)
     plt.close(fig)
 
 
-def main(argv=None):
-    return study_main(__import__(__name__, fromlist=["NAME"]), argv)
-
+main = main_of(__name__)
 
 if __name__ == "__main__":
     import sys
