@@ -55,7 +55,12 @@ def solver_args(p, defaults_from_file=False):
     p.add_argument("--method", choices=sorted(METHODS, key=lambda m: m != "auto"), default=None,
                    help="solver (default auto: newton for small designs, newton-cg for larger ones)")
     p.add_argument("--steps", type=int, default=d, help="frames of the contraction ramp (default 1)")
-    p.add_argument("--tol", type=float, default=None, help="residual tolerance (default 1e-7, in units of h)")
+    p.add_argument("--tol", type=float, default=None,
+                   help="tolerance in units of h (default: Newton methods stop when their estimated distance to "
+                        "the solution is below 1e-6 of the part's size; alternation 1e-7)")
+    p.add_argument("--on-drift", choices=("warn", "stop"), default=None,
+                   help="when a Newton solve drifts between near-equal states (a buckled sheet): warn and go on "
+                        "(default) or stop there, not converged")
     p.add_argument("--max-iter", type=int, default=None, help="iteration limit per frame")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--contact", dest="contact", action="store_const", const="on", default=None,
@@ -73,7 +78,7 @@ def solve(design, args, options=None):
     import gdfe
 
     opts = dict(options or {})
-    for key in ("method", "steps", "tol", "max_iter", "contact"):
+    for key in ("method", "steps", "tol", "max_iter", "contact", "on_drift"):
         v = getattr(args, key, None)
         if v is not None:
             opts[key] = v

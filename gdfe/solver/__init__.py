@@ -35,9 +35,10 @@ from gdfe.solver.energy import D8, Assembly, Orientation, RestState, SolveStats,
 from gdfe.solver.linalg import FACTOR_BACKENDS, factor_backend, factorise
 from gdfe.solver.linearised import DIRECT_START_CELLS
 from gdfe.solver.methods import AUTO_NEWTON_CELLS, METHODS, Solver, auto_method
-from gdfe.solver.newton import ENERGY_ROUNDOFF, MU_MIN, STEP_TOL_FACTOR
+from gdfe.solver.newton import DRIFT_ENERGY, DRIFT_SHRINK, DRIFT_WINDOW, ENERGY_ROUNDOFF, MU_MIN, ON_DRIFT, STEP_TOL_FACTOR
 from gdfe.solver.penetration import Penetration, PenetrationCheck, check_penetration
-from gdfe.solver.simulation import CONTACT_LEVELS, INITS, MULTILEVEL_CELLS, ConvergenceError, Result, simulate
+from gdfe.solver.simulation import (ALTERNATION_TOL, CONTACT_LEVELS, INITS, MULTILEVEL_CELLS, SHAPE_ACCURACY,
+                                    ConvergenceError, Result, default_tol, simulate)
 from gdfe.solver.starts import MULTILEVEL_COARSEST, MULTILEVEL_TOL
 
 
@@ -54,4 +55,5 @@ __all__ = [
     "INITS", "FACTOR_BACKENDS", "MU_MIN", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "D8",
     "CONTACT_MODES", "CONTACT_LEVELS", "Contact", "ContactReport", "contact_available", "default_dhat",
     "Penetration", "PenetrationCheck", "check_penetration",
+    "SHAPE_ACCURACY", "ALTERNATION_TOL", "default_tol", "ON_DRIFT", "DRIFT_WINDOW", "DRIFT_ENERGY", "DRIFT_SHRINK",
 ]

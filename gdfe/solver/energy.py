@@ -264,6 +264,13 @@ class SolveStats:
         Surface pairs within the contact gap at ``points`` (0 without contact).
     contact_energy : float
         The contact barrier's part of the last energy [mm^5] (0 without contact).
+    error_estimate : float
+        The Newton methods' estimated distance to the solution at the end, rigid motions
+        left out, in units of h (inf before the first step; None for the alternation).
+    drift : dict or None
+        Where a Newton solve drifted between near-equal states (:func:`gdfe.solver.newton.solve_newton`):
+        ``since_iteration``, ``detected_at``, ``iterations`` spent from then on,
+        ``energy_change`` (relative), ``moved_mm``, ``estimate_mm``; None when it did not.
     """
 
     points: np.ndarray
@@ -274,6 +281,8 @@ class SolveStats:
     cg_iterations: int = 0
     contact_pairs: int = 0
     contact_energy: float = 0.0
+    error_estimate: float | None = None
+    drift: dict | None = None
 
 
 class LocalGlobal:

@@ -16,7 +16,7 @@ from gdfe.solver.alternation import solve_alternation
 from gdfe.solver.contact import Contact
 from gdfe.solver.energy import LocalGlobal, SolveStats
 from gdfe.solver.linearised import linearised_start
-from gdfe.solver.newton import ReducedHessian, cg_directions, factorised_directions, solve_newton
+from gdfe.solver.newton import ON_DRIFT, ReducedHessian, cg_directions, factorised_directions, solve_newton
 
 __all__ = ["METHODS", "AUTO_NEWTON_CELLS", "auto_method", "Solver"]
 
@@ -87,7 +87,7 @@ class Solver(LocalGlobal):
         return linearised_start(self, self.reduced_hessian, V, activation)
 
     def solve(self, V0, activation=1.0, method="newton", tol=1e-7, max_iter=200, history=6,
-              contact=None) -> SolveStats:
+              contact=None, on_drift="warn") -> SolveStats:
         """Minimise Eq. 5 from ``V0`` (plus the self-contact barrier, with ``contact``).
 
         Parameters
@@ -107,6 +107,9 @@ class Solver(LocalGlobal):
         contact : gdfe.solver.contact.Contact, optional
             Self-contact of this design (Newton methods only); ``V0`` must then be free of
             self-intersection. See :func:`gdfe.solver.newton.solve_newton`.
+        on_drift : {"warn", "stop"}
+            What a Newton solve does when it drifts between near-equal states
+            (:func:`gdfe.solver.newton.solve_newton`).
 
         Returns
         -------
@@ -117,6 +120,7 @@ class Solver(LocalGlobal):
         tol = check_tol(tol)
         max_iter = check_int("max_iter", max_iter)
         history = check_int("history", history)
+        on_drift = check_choice("on_drift", on_drift, ON_DRIFT)
         if method == "auto":
             method = auto_method(self.design)
         if contact is not None:
@@ -126,10 +130,11 @@ class Solver(LocalGlobal):
                                 f"'newton-cg'), got method={method!r}")
         if method == "newton":
             directions = factorised_directions(self.reduced_hessian, self.rest(activation))
-            return solve_newton(self, V0, activation, tol, max_iter, directions, contact=contact)
+            return solve_newton(self, V0, activation, tol, max_iter, directions, contact=contact,
+                                on_drift=on_drift)
         if method == "newton-cg":
             directions = cg_directions(self.reduced_hessian, self.rest(activation))
             return solve_newton(self, V0, activation, tol, max_iter, directions, alphas=(1.0, 0.5, 0.25),
-                                contact=contact)
+                                contact=contact, on_drift=on_drift)
         return solve_alternation(self, V0, activation, tol, max_iter, anderson=method == "anderson",
                                  history=history)

@@ -22,7 +22,8 @@ from gdfe._validation import GdfeError
 from gdfe.solver.energy import SolveStats
 from gdfe.solver.linalg import factorise
 
-__all__ = ["MU_MIN", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "CONTACT_ALPHAS", "CONTACT_EXACT_RES", "ReducedHessian", "CoarseSpace", "pcg",
+__all__ = ["MU_MIN", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "CONTACT_ALPHAS", "CONTACT_EXACT_RES", "DRIFT_WINDOW",
+           "DRIFT_ENERGY", "DRIFT_SHRINK", "ON_DRIFT", "ReducedHessian", "CoarseSpace", "pcg", "deformation",
            "solve_newton", "factorised_directions", "cg_directions"]
 
 log = logging.getLogger(__name__)
@@ -41,6 +42,14 @@ CONTACT_ALPHAS = (1.0, 0.5, 0.25, 0.125)
 #: it is, not projected pair by pair onto the positive semi-definite cone: near a solution the
 #: whole Hessian is positive definite, and the projected one only converges linearly.
 CONTACT_EXACT_RES = 1e-2
+#: Drift (see :func:`solve_newton`): over this many iterations ...
+DRIFT_WINDOW = 10
+#: ... the energy fell by less than this fraction of itself ...
+DRIFT_ENERGY = 1e-6
+#: ... while the estimated distance to the solution shrank by less than this factor.
+DRIFT_SHRINK = 0.1
+#: What a Newton solve does when it drifts: ``"warn"`` (say so and go on) or ``"stop"``.
+ON_DRIFT = ("warn", "stop")
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -347,6 +356,24 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200):
     return directions
 
 
+def deformation(step, V):
+    """``step`` ``(n, 3)`` [mm] less its best-fit infinitesimal rigid motion about the centroid of ``V``.
+
+    The energy does not change under rigid motions, and the pinned vertex holds only the
+    translations: a step may turn the whole shape about it by round-off (``MU_MIN`` keeps
+    that small, not zero), which moves far vertices of a large part by more than the
+    tolerance while the shape stays the same. The stopping test measures what is left.
+    """
+    r = V - V.mean(axis=0)
+    d = step - step.mean(axis=0)
+    M = np.einsum("ij,ij->", r, r) * np.eye(3) - r.T @ r
+    try:
+        omega = np.linalg.solve(M, np.cross(r, d).sum(axis=0))
+    except np.linalg.LinAlgError:  # all points on a line: no rotation to remove
+        return d
+    return d - np.cross(omega, r)
+
+
 def _solve_free(steps, F):
     """``L_ff^{-1} F`` on the free vertices (zero at the pinned one), ``(n, 3)``."""
     out = np.zeros_like(F)
@@ -354,7 +381,7 @@ def _solve_free(steps, F):
     return out
 
 
-def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,), contact=None):
+def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,), contact=None, on_drift="warn"):
     """Damped Newton on the rotation-reduced energy; the outer loop of both Newton methods.
 
     Parameters
@@ -384,6 +411,9 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
         :data:`CONTACT_ALPHAS` until the energy with the barrier falls. The barrier's
         Hessian is projected pair by pair onto the positive semi-definite cone while the
         residual is above :data:`CONTACT_EXACT_RES`, and enters as it is below.
+    on_drift : {"warn", "stop"}
+        What to do when the solve drifts (see below): log a warning and go on, or stop
+        there (the solve is then not converged).
 
     Returns
     -------
@@ -400,6 +430,16 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
     stiffness; the Newton step does not. The estimate is the last step's length ``|s_k|``,
     or ``|s_k| theta / (1 - theta)`` with the contraction ``theta = |s_k| / |s_k-1|`` of
     two full steps when that is smaller (the bound of a sequence contracting by ``theta``).
+    Steps are measured without their rigid part (:func:`deformation`): a turn of the whole
+    part by round-off is not a distance from the solution. A solve converges when both
+    tests hold, also at its last iteration.
+
+    Drift: a design with several equilibria close in energy (a buckled sheet) can take
+    many iterations moving between them. When over :data:`DRIFT_WINDOW` iterations the
+    energy falls by less than :data:`DRIFT_ENERGY` of itself while the estimated distance
+    shrinks by less than :data:`DRIFT_SHRINK`, the solve says so once (a warning, and
+    ``SolveStats.drift``: where it began, the energy change, how far the shape moved) and
+    goes on or stops, as ``on_drift`` says.
     With contact, the plain step's move is ``L^{-1} (b - L V - g_B / 2)``: the assembly
     step with the barrier's force ``g_B`` held at its value at ``V``.
     """
@@ -420,6 +460,8 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
     it = cg = 0
     stalled = False
     error = prev = np.inf  # estimated distance to the solution; last full step, in units of h
+    drift, stop_drift = None, False
+    anchor = (0, E, np.inf, V.copy())  # iteration, energy, estimate and shape a drift is measured from
     while True:
         plain = steps.assemble(Q, Vp, activation)  # the plain step from V
         G = plain.V
@@ -432,7 +474,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
             if state.active:
                 move = move - 0.5 * _solve_free(steps, gB)
             res = float(np.abs(move).max() / scale)
-        if (res <= tol and error <= STEP_TOL_FACTOR * tol) or it >= max_iter:
+        if (res <= tol and error <= STEP_TOL_FACTOR * tol) or it >= max_iter or stop_drift:
             break
         t0 = time.perf_counter()
         grad = 2.0 * (steps.L @ V - plain.b)
@@ -471,7 +513,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
                             state = trial_state
                         break
             if taken is not None:
-                moved = float(np.abs(taken * step).max() / scale)
+                moved = float(np.abs(deformation(taken * step, V)).max() / scale)
                 error = moved
                 if taken == 1.0:
                     theta = moved / prev  # 0 after a first full step: no estimate yet
@@ -510,9 +552,28 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
         log.debug("newton %d: residual %.3e, error estimate %.3e, energy %.6e, mu %.1e",
                   it, res, error, E, mu)
         energies.append(E)
+        if it - anchor[0] >= DRIFT_WINDOW:
+            fell = (anchor[1] - E) / max(abs(E), 1e-300)
+            if fell < DRIFT_ENERGY and error > STEP_TOL_FACTOR * tol and not error < DRIFT_SHRINK * anchor[2]:
+                moved_mm = float(np.linalg.norm(deformation(V - anchor[3], anchor[3]), axis=1).max())
+                if drift is None:
+                    drift = {"since_iteration": anchor[0], "detected_at": it, "energy": E,
+                             "energy_change": fell, "moved_mm": moved_mm, "estimate_mm": error * scale}
+                    log.warning("newton: drifting between near-equal states: over iterations %d-%d the energy fell "
+                                "by %.1e of itself while the shape moved %.3g mm (distance to the solution "
+                                "estimated %.3g mm); %s", anchor[0], it, fell, moved_mm, error * scale,
+                                "stopping (on_drift='stop')" if on_drift == "stop" else
+                                "going on (on_drift='stop' stops at this point)")
+                drift["moved_mm"] = max(drift["moved_mm"], moved_mm)
+                stop_drift = on_drift == "stop"
+            anchor = (it, E, error, V.copy())
+    if drift is not None:
+        drift["iterations"] = it - drift["since_iteration"]
+    done = res <= tol and error <= STEP_TOL_FACTOR * tol and not (stalled or stop_drift)
     if contact is None:
-        return SolveStats(points=G, converged=res <= tol, iterations=it, residual=res,
-                          energies=energies + [steps.orient(G, activation).energy], cg_iterations=cg)
-    return SolveStats(points=V, converged=res <= tol and not stalled, iterations=it, residual=res,
+        return SolveStats(points=G, converged=done, iterations=it, residual=res,
+                          energies=energies + [steps.orient(G, activation).energy], cg_iterations=cg,
+                          error_estimate=error, drift=drift)
+    return SolveStats(points=V, converged=done, iterations=it, residual=res,
                       energies=energies + [E], cg_iterations=cg, contact_pairs=state.active,
-                      contact_energy=state.energy)
+                      contact_energy=state.energy, error_estimate=error, drift=drift)

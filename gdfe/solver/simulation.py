@@ -18,11 +18,12 @@ from gdfe.design import Design
 from gdfe.model import as_model
 from gdfe.solver.contact import CONTACT_MODES, Contact, ContactReport, contact_available
 from gdfe.solver.methods import METHODS, Solver, auto_method, check_tol
+from gdfe.solver.newton import ON_DRIFT, STEP_TOL_FACTOR
 from gdfe.solver.penetration import Penetration, PenetrationCheck
 from gdfe.solver.starts import flat_start, multilevel_start
 
 __all__ = ["Result", "ConvergenceError", "simulate", "INITS", "MULTILEVEL_CELLS", "CONTACT_LEVELS",
-           "CONTACT_LEVEL_TOL", "CONTACT_LEVEL_ITER"]
+           "CONTACT_LEVEL_TOL", "CONTACT_LEVEL_ITER", "SHAPE_ACCURACY", "ALTERNATION_TOL", "default_tol"]
 
 log = logging.getLogger(__name__)
 
@@ -39,6 +40,27 @@ CONTACT_LEVEL_TOL = 1e-2
 #: Iteration limit of an added level, and of the solves that make a start free of
 #: self-intersection (the same reason).
 CONTACT_LEVEL_ITER = 10
+#: With ``tol=None`` a Newton solve stops when its estimated distance to the solution is below
+#: this fraction of the part's size (the diagonal of the flat print's bounding box): far below
+#: what a printer or a scan resolves, far above round-off (the stopping study, ``gdfe study
+#: stopping``, measures the shape's change against ``tol``).
+SHAPE_ACCURACY = 1e-6
+#: ``tol`` of the alternation methods when none is given (units of h): their plain step
+#: underestimates the distance to the solution, so they get no size-scaled test.
+ALTERNATION_TOL = 1e-7
+
+
+def default_tol(design, method):
+    """The ``tol`` (units of h) that ``tol=None`` gives ``method`` on ``design``.
+
+    Newton methods: :data:`SHAPE_ACCURACY` times the part's size, over
+    ``STEP_TOL_FACTOR * h`` (their stopping test asks the estimated distance to the solution
+    to be below ``STEP_TOL_FACTOR * tol * h``); the alternation methods: :data:`ALTERNATION_TOL`.
+    """
+    if not method.startswith("newton"):
+        return ALTERNATION_TOL
+    size = float(np.linalg.norm(np.ptp(design.mesh.points, axis=0)))
+    return SHAPE_ACCURACY * size / (STEP_TOL_FACTOR * design.h)
 
 
 class ConvergenceError(RuntimeError):
@@ -88,6 +110,14 @@ class Result:
         Whether the solve used self-contact, why, and with which gap.
     frame_penetration : list of Penetration
         The check of every frame after the flat print.
+    tol : float
+        The tolerance the solve ran with (units of h; :func:`default_tol` when none was given).
+    error_estimate_mm : float or None
+        The Newton methods' estimated distance of the last frame from the exact minimiser,
+        rigid motions left out [mm] (None for the alternation methods).
+    drift : dict or None
+        The first frame whose Newton solve drifted between near-equal states
+        (:attr:`gdfe.solver.SolveStats.drift`, with its ``frame``); None when none did.
     """
 
     design: Design
@@ -106,6 +136,9 @@ class Result:
     penetration: Penetration = None
     contact: ContactReport = None
     frame_penetration: list = dataclasses.field(default_factory=list)
+    tol: float = None
+    error_estimate_mm: float = None
+    drift: dict = None
 
     @property
     def penetrates(self) -> bool:
@@ -132,7 +165,9 @@ class Result:
                "residual": float(self.residual), "energy": float(self.energy),
                "seconds": float(self.seconds), "n_elements": int(self.design.n_cells),
                "n_points": int(self.design.mesh.n_points), "method": self.method,
-               "frames": len(self.frames)}
+               "frames": len(self.frames), "tol": None if self.tol is None else float(self.tol),
+               "error_estimate_mm": None if self.error_estimate_mm is None else float(self.error_estimate_mm),
+               "drift": self.drift}
         if self.penetration is not None:
             depth = max((p.depth_mm for p in self.frame_penetration), default=self.penetration.depth_mm)
             out["penetration_mm"] = float(depth)
@@ -144,8 +179,8 @@ class Result:
         return out
 
 
-def simulate(design, *, method="auto", init="auto", steps=1, tol=1e-7, max_iter=None,
-             history=6, seed=0, model=None, contact="auto", dhat=None):
+def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=None,
+             history=6, seed=0, model=None, contact="auto", dhat=None, on_drift="warn"):
     """Simulate the heat-activated shape change of a design.
 
     Parameters
@@ -174,10 +209,15 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=1e-7, max_iter=
     steps : int
         Number of frames the contraction is ramped over (activation k/steps for
         k = 1..steps), each started from the last: the time series of the fold.
-    tol : float
+    tol : float, optional
         Convergence tolerance on the fixed-point residual (largest vertex move of one
         plain iteration, in units of the film thickness h). The Newton methods also need
-        their estimated distance to the solution below ``gdfe.solver.STEP_TOL_FACTOR * tol``.
+        their estimated distance to the solution, rigid motions left out, below
+        ``gdfe.solver.STEP_TOL_FACTOR * tol`` (h). Default (:func:`default_tol`): for the
+        Newton methods the distance below :data:`SHAPE_ACCURACY` times the part's size
+        (a 1 mm hinge: a few nm; a 100 mm sheet: 0.1 um); for the alternation
+        :data:`ALTERNATION_TOL`. Give the shape accuracy you need as
+        ``tol = accuracy_mm / (STEP_TOL_FACTOR * h)``.
     max_iter : int, optional
         Iteration limit per frame; default 200 for the Newton methods, 5000 otherwise.
     history : int
@@ -203,6 +243,12 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=1e-7, max_iter=
     dhat : float, optional
         Gap [mm] within which the contact barrier acts (default
         :func:`gdfe.solver.contact.default_dhat`, 0.1 h or less on fine meshes).
+    on_drift : {"warn", "stop"}
+        A design with several equilibria close in energy (a sheet that buckles) can keep a
+        Newton solve moving between them, the energy changing in its 6th digit: the solve
+        then logs a warning and records it in :attr:`Result.drift` and goes on
+        (``"warn"``, default) or stops there, not converged (``"stop"``); see
+        :func:`gdfe.solver.newton.solve_newton`.
 
     Returns
     -------
@@ -246,13 +292,14 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=1e-7, max_iter=
         max_iter = 200 if method.startswith("newton") else 5000
     max_iter = check_int("max_iter", max_iter)
     history = check_int("history", history)
-    tol = check_tol(tol)
+    tol = default_tol(design, method) if tol is None else check_tol(tol)
+    on_drift = check_choice("on_drift", on_drift, ON_DRIFT)
     t0 = time.perf_counter()
     solver = Solver(design)
     check = PenetrationCheck(design)
     acts = np.linspace(0.0, 1.0, steps + 1)
     opts = dict(init=init, start=None if start is None else (start, float(acts[1])), seed=seed, tol=tol,
-                max_iter=max_iter, history=history)
+                max_iter=max_iter, history=history, on_drift=on_drift)
     term = Contact(design, dhat) if contact == "on" else None
     run = _run_frames(solver, acts, method, term, **opts)
     timings = {}
@@ -299,7 +346,9 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=1e-7, max_iter=
     return Result(design=design, points=run.frames[-1], converged=bool(run.converged), iterations=run.total,
                   residual=run.residual, energy=run.energies[-1], energy_history=np.array(run.energies),
                   seconds=seconds, frames=run.frames, activation=acts, frame_iterations=run.per_frame,
-                  method=method, timings=timings, penetration=pens[-1], contact=report, frame_penetration=pens)
+                  method=method, timings=timings, penetration=pens[-1], contact=report, frame_penetration=pens,
+                  tol=tol, error_estimate_mm=None if run.error_estimate is None else run.error_estimate * design.h,
+                  drift=run.drift)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -314,6 +363,8 @@ class _FrameRun:
     per_frame: list
     contact_pairs: int = 0
     contact_energy: float = 0.0
+    error_estimate: float = None
+    drift: dict = None
 
 
 def _check_frames(check, frames):
@@ -366,19 +417,20 @@ def _clear_start(solver, term, init, start, seed, a, method, max_iter, depth=0):
     return stats.points, its + stats.iterations
 
 
-def _run_frames(solver, acts, method, term, *, init, start, seed, tol, max_iter, history):
+def _run_frames(solver, acts, method, term, *, init, start, seed, tol, max_iter, history, on_drift="warn"):
     """Solve every frame of the ramp ``acts``, each from the last (with contact: through added levels)."""
     design = solver.design
     V = design.mesh.points.copy()
     frames = [V.copy()]
     converged, total, res, energies, per_frame = True, 0, 0.0, [], []
-    stats = None
+    stats, drift = None, None
     for k, a in enumerate(acts[1:]):
         frame_its = 0
         if term is None:
             if k == 0:
                 V = _first_start(solver, design, init, start, seed, a)
-            stats = solver.solve(V, a, method=method, tol=tol, max_iter=max_iter, history=history)
+            stats = solver.solve(V, a, method=method, tol=tol, max_iter=max_iter, history=history,
+                                 on_drift=on_drift)
         else:
             a_prev = acts[k]
             n_levels = max(1, int(np.ceil(CONTACT_LEVELS * (a - a_prev) - 1e-9)))
@@ -391,7 +443,8 @@ def _run_frames(solver, acts, method, term, *, init, start, seed, tol, max_iter,
                     frame_its += its
                 last = j == len(levels) - 1
                 stats = solver.solve(V, b, method=method, tol=tol if last else CONTACT_LEVEL_TOL,
-                                     max_iter=max_iter if last else min(max_iter, CONTACT_LEVEL_ITER), contact=term)
+                                     max_iter=max_iter if last else min(max_iter, CONTACT_LEVEL_ITER), contact=term,
+                                     on_drift=on_drift)
                 V = stats.points
                 if not last:
                     frame_its += stats.iterations
@@ -402,8 +455,11 @@ def _run_frames(solver, acts, method, term, *, init, start, seed, tol, max_iter,
         per_frame.append(frame_its)
         energies.extend(stats.energies)
         frames.append(V.copy())
+        if drift is None and stats.drift is not None:
+            drift = {"frame": k + 1, **stats.drift}
         if not stats.converged:
             log.warning("frame %d/%d (activation %.3g) did not converge: residual %.3g after %d iterations",
                         k + 1, len(acts) - 1, a, res, stats.iterations)
     return _FrameRun(frames=frames, converged=bool(converged), total=total, residual=res, energies=energies,
-                     per_frame=per_frame, contact_pairs=stats.contact_pairs, contact_energy=stats.contact_energy)
+                     per_frame=per_frame, contact_pairs=stats.contact_pairs, contact_energy=stats.contact_energy,
+                     error_estimate=stats.error_estimate, drift=drift)
