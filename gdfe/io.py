@@ -114,9 +114,19 @@ def boundary_quads(cells):
     local = np.array([[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]])
     cells = np.asarray(cells)
     faces = cells[:, local].reshape(-1, 4)
-    key = np.sort(faces, axis=1)
-    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    boundary = counts[inv.ravel()] == 1
+    # a face is on the boundary when no other cell has the same four vertices: sort the
+    # faces by their sorted vertices (two int64 keys) and drop those equal to a neighbour
+    key = np.sort(faces, axis=1).astype(np.int64)
+    n = int(cells.max()) + 1 if cells.size else 1
+    k1, k2 = key[:, 0] * n + key[:, 1], key[:, 2] * n + key[:, 3]
+    order = np.lexsort((k2, k1))
+    a1, a2 = k1[order], k2[order]
+    same = (a1[1:] == a1[:-1]) & (a2[1:] == a2[:-1])
+    shared = np.zeros(order.size, bool)
+    shared[1:] |= same
+    shared[:-1] |= same
+    boundary = np.empty(order.size, bool)
+    boundary[order] = ~shared
     owner = np.repeat(np.arange(cells.shape[0]), 6)
     return faces[boundary], owner[boundary]
 

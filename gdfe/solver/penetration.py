@@ -32,6 +32,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from gdfe._validation import check_array, check_instance, check_positive
@@ -251,14 +252,17 @@ class PenetrationCheck:
         self.design = design
         self.gap_range = GAP_RANGE_H * design.h if gap_range is None else float(check_positive("gap_range", gap_range))
         self.tris, self.owner = surface_triangles(design)
-        self.surface = np.unique(self.tris)
         cells = design.mesh.cells
         self.cells = cells
         self.n = design.mesh.n_points
-        # vertex pairs that share a cell, as sorted keys u * n + v
+        self.surface = np.nonzero(np.bincount(self.tris.ravel(), minlength=self.n))[0]
+        # vertex pairs that share a cell, as sorted keys u * n + v (the pattern of a sparse
+        # matrix: its duplicates summed and indices sorted by SciPy, far faster than np.unique)
         a = np.repeat(cells, 8, axis=1).ravel().astype(np.int64)
         b = np.tile(cells, (1, 8)).ravel().astype(np.int64)
-        self._near = np.unique(a * self.n + b)
+        pattern = sp.csr_matrix((np.ones(a.size, np.int8), (a, b)), shape=(self.n, self.n))
+        pattern.sum_duplicates()
+        self._near = np.repeat(np.arange(self.n, dtype=np.int64), np.diff(pattern.indptr)) * self.n + pattern.indices
         # cells of each vertex (CSR rows)
         m = cells.shape[0]
         order = np.argsort(cells.ravel(), kind="stable")
