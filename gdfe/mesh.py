@@ -98,8 +98,12 @@ def sheet_mesh(keep, dx, dy, h, nz=2, origin=(0.0, 0.0)):
     vj = jj[:, None] + _HEX_OFFSETS[:, 1]
     vk = kk[:, None] + _HEX_OFFSETS[:, 2]
     flat = vi + (nx + 1) * (vj + (ny + 1) * vk)
-    used, cells = np.unique(flat, return_inverse=True)
-    cells = cells.reshape(-1, 8)
+    # the lattice points used, numbered in order (a dense map: np.unique is slower at 10^6 cells)
+    mark = np.zeros((nx + 1) * (ny + 1) * (nz + 1), bool)
+    mark[flat.ravel()] = True
+    used = np.nonzero(mark)[0]
+    number = np.cumsum(mark) - 1
+    cells = number[flat].reshape(-1, 8)
     pi = used % (nx + 1)
     pj = (used // (nx + 1)) % (ny + 1)
     pk = used // ((nx + 1) * (ny + 1))

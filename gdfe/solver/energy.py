@@ -330,7 +330,7 @@ class LocalGlobal:
         self.L = system_matrix(design).tocsc()
         rigid = np.nonzero(design.material == Material.RIGID)[0]
         self.pin = int(self.cells[rigid[0] if rigid.size else 0, 0])
-        self.free = np.setdiff1d(np.arange(self.n), [self.pin])
+        self.free = np.delete(np.arange(self.n), self.pin)
         self.L_ff = self.L[self.free][:, self.free].tocsc()
         self.L_fp = self.L[self.free][:, [self.pin]]
         self.factor = factorise(self.L_ff)

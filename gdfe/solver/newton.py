@@ -161,7 +161,7 @@ class ReducedHessian:
         vals[rows == steps.pin] = 0.0
         Z = sp.csr_matrix((vals, (rows, cols)))
         Z.eliminate_zeros()
-        used = np.unique(Z.indices)
+        used = np.nonzero(np.bincount(Z.indices, minlength=Z.shape[1]))[0]
         Z = Z[:, used].tocsr()
         Zf = Z[steps.free]
         Lc3 = sp.kron(Zf.T @ steps.L_ff @ Zf, sp.eye(3), format="csc")
