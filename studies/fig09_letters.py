@@ -31,9 +31,26 @@ H = paper.H
 D = paper.FIG6_D
 WIDTH = 0.5
 CELL = {"coarse": 0.25, "default": 0.125, "fine": 0.0625}
-TOL_MAX_DEV = 0.5  # mm: regression bound on the largest deviation of any letter
+#: Regression bounds [mm] on the largest deviation: of any letter, and of the letters whose target
+#: stays at least h clear of itself (d and a close their bowls on their own stems: with
+#: self-contact they deviate 0.58 mm, against 0.33 mm when the strip passed through itself).
+TOL_MAX_DEV = 0.6
+TOL_CLEAR_DEV = 0.3
+#: Arc length [mm] beyond which two points of a target count as different parts of it.
+SELF_APART = 2.0
 
 WORD = "Concordia"
+
+
+def _self_gap(curve):
+    """Closest approach [mm] of two points of a target curve more than SELF_APART apart along it."""
+    P = np.asarray(curve, float)
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
+    apart = np.abs(s[:, None] - s[None, :]) > SELF_APART
+    if not apart.any():
+        return float("inf")
+    dist = np.linalg.norm(P[:, None] - P[None, :], axis=2)
+    return float(dist[apart].min())
 
 
 def _letter(case):
@@ -57,6 +74,7 @@ def _letter(case):
             "blocks": pat.blocks.tolist(), "angle_target": pat.angle.tolist(),
             "angle_printed": pat.angle_printed.tolist(), "strip_mm": pat.length, "n_cells": int(des.n_cells),
             "max_dev_mm": dev["max"], "rms_mm": dev["rms"], "off_plane_mm": dev["off"],
+            "self_gap_mm": _self_gap(target.curve),
             "turn_sim": float(np.sum(np.diff(np.unwrap(np.arctan2(*np.diff(uv, axis=0).T[::-1]))))),
             "converged": bool(res.converged), "iterations": int(res.iterations), "residual": float(res.residual),
             "seconds": float(res.seconds), "_aligned": dev["aligned"], "_target": target.curve,
@@ -79,6 +97,8 @@ def run(resolution="default", out=None):
     mid = [by[(g, "midline")] for g in glyphs]
     worst = max(paper, key=lambda d: d["max_dev_mm"])
     worst_mid = max(mid, key=lambda d: d["max_dev_mm"])
+    clear = [d for d in paper if d["self_gap_mm"] >= H] or paper
+    worst_clear = max(clear, key=lambda d: d["max_dev_mm"])
     converged = all(d["converged"] for d in done)
     max_couples = max(d["n_couples"] for d in paper)
     hl = [
@@ -87,6 +107,11 @@ def run(resolution="default", out=None):
         headline("largest deviation of a simulated letter from its target", worst["max_dev_mm"], None,
                  TOL_MAX_DEV, "le", unit="mm", paper_text="letters shown, no deviation given",
                  note=f"letter '{worst['glyph']}'; printed rule of Sec. 4.2"),
+        headline("largest deviation of a letter whose target stays clear of itself", worst_clear["max_dev_mm"],
+                 None, TOL_CLEAR_DEV, "le", unit="mm", paper_text="letters shown, no deviation given",
+                 note="the targets of " + ", ".join(sorted({d["glyph"] for d in paper if d["self_gap_mm"] < H}))
+                      + " meet or cross themselves, which a film of thickness h cannot: self-contact (the "
+                        "default of gdfe.simulate) holds it apart there"),
         headline("largest deviation with mid-line compensation", worst_mid["max_dev_mm"], None,
                  worst["max_dev_mm"], "le", unit="mm", paper_text="(not in the paper)",
                  note="each couple printed |alpha| h / 2 longer; bound: the uncompensated deviation"),
