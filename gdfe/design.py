@@ -150,7 +150,7 @@ class Design:
 
 
 def grid_design(material2d, R=None, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0, film=None,
-                regions2d=None, meta=None, d=None, model=None):
+                regions2d=None, meta=None, d=None, model=None, process=None):
     """A design from an in-plane grid of materials.
 
     The contraction of every cell comes either from ``R`` directly or from a deformation
@@ -180,6 +180,9 @@ def grid_design(material2d, R=None, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0, 
         Passive thickness printed on each cell (NaN where none).
     model : DeformationModel or path of a model file, optional
         The deformation model that gives ``R`` from ``d`` (default: the paper's Eq. 3).
+    process : dict, optional
+        The part's process variables, for a model's process mechanisms (``partial_activation``,
+        ``batch``), e.g. ``{"T_C": 150, "lot": "B"}``.
     """
     material2d = np.asarray(material2d)
     if material2d.ndim != 2:
@@ -214,14 +217,16 @@ def grid_design(material2d, R=None, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0, 
     if R is None:
         design = Design(mesh=mesh, material=material2d[i, j], R=1.0, h=h, isotropy=isotropy,
                         regions=regions, meta=meta, d=d_cells)
-        return (model or paper_model()).apply(design)
+        if process:
+            meta["process"] = dict(process)
+        return (model or paper_model()).apply(design, process)
     R2 = np.broadcast_to(np.asarray(R, float), material2d.shape)
     return Design(mesh=mesh, material=material2d[i, j], R=R2[i, j], h=h, isotropy=isotropy,
                   regions=regions, meta=meta, d=d_cells)
 
 
 def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_length=1.0,
-          cell_size=None, nz=1, isotropy=1.0, face="top", model=None):
+          cell_size=None, nz=1, isotropy=1.0, face="top", model=None, process=None):
     """The paper's folding specimen: two rigid panels joined by a contracting hinge.
 
     The strip runs along x: ``panel_a`` (x < 0), the hinge of width ``length``
@@ -260,6 +265,8 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
         Which face of the hinge is free (bends towards +z for ``"top"``).
     model : DeformationModel or path of a model file, optional
         The deformation model (:mod:`gdfe.model`); default the paper's Eq. 3 with ``K``.
+    process : dict, optional
+        The part's process variables, for the model's process mechanisms.
     """
     length = check_positive("length", length)
     width = check_positive("width", width)
@@ -299,7 +306,7 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
     else:
         dgrid = np.where(mat == int(code), d, np.nan)
         des = grid_design(mat, h=h, pixel=(dx, dy), nz=nz, isotropy=isotropy, regions2d=regions2d,
-                          meta=meta, d=dgrid, model=model)
+                          meta=meta, d=dgrid, model=model, process=process)
         hinge_cells = des.regions["hinge"]
         des.meta["R"] = float(des.R[hinge_cells[0]])
         if des.contraction is not None:  # a mechanism reached into the panels: they end where it stops
@@ -316,7 +323,7 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
     return des
 
 
-def from_rows(rows, R=None, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0, d=None, model=None):
+def from_rows(rows, R=None, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0, d=None, model=None, process=None):
     """A design from a text layout, one string per row of cells, first row at the largest y.
 
     Characters: ``R`` rigid, ``T`` contracts on top (top face free), ``B`` contracts on
@@ -339,7 +346,7 @@ def from_rows(rows, R=None, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0, d=None, 
         mat[grid == ch] = int(code)
     meta = {"kind": "layout", "d_mm": None if d is None else float(check_positive("d", d))}
     return grid_design(mat, R, h=h, pixel=pixel, nz=nz, isotropy=isotropy, film=film, meta=meta,
-                       d=_one_side_d(mat, d, d, d), model=model)
+                       d=_one_side_d(mat, d, d, d), model=model, process=process)
 
 
 def _one_side_d(mat, d, d_top=None, d_bottom=None):
@@ -378,7 +385,7 @@ def _read_mask(name, value, shape=None):
 
 
 def from_masks(top, bottom, pixel, R=None, h=DEFAULT_H, nz=1, isotropy=1.0, film=None, d=None,
-               d_top=None, d_bottom=None, model=None):
+               d_top=None, d_bottom=None, model=None, process=None):
     """A design from masks of the passive material printed on the top and bottom faces.
 
     Parameters
@@ -414,10 +421,10 @@ def from_masks(top, bottom, pixel, R=None, h=DEFAULT_H, nz=1, isotropy=1.0, film
     if given:
         meta["d_mm"] = float(given[0])
     return grid_design(mat, R, h=h, pixel=pixel, nz=nz, isotropy=isotropy, film=keep, meta=meta,
-                       d=_one_side_d(mat, d, d_top, d_bottom), model=model)
+                       d=_one_side_d(mat, d, d_top, d_bottom), model=model, process=process)
 
 
-def load_design(path, model=None):
+def load_design(path, model=None, process=None):
     """Read a TOML design file; returns ``(design, options)``.
 
     The file has a ``[film]`` table (``h``; ``R``, or ``d`` with a deformation model:
@@ -433,7 +440,9 @@ def load_design(path, model=None):
     A ``.svg`` or ``.fold`` file alone is read with the paper's film
     (:func:`gdfe.fabrication.drawings.load_drawing`).
 
-    An optional ``[simulate]`` table is returned as ``options`` (``steps``, ``tol``,
+    An optional ``[process]`` table gives the part's process variables (``T_C = 150``,
+    ``lot = "B"``) to a model with process mechanisms. An optional ``[simulate]`` table is
+    returned as ``options`` (``steps``, ``tol``,
     ``max_iter``, ``method``, ``contact`` = ``"auto"``, ``"on"`` or ``"off"``) for :func:`gdfe.simulate`.
 
     Parameters
@@ -441,6 +450,9 @@ def load_design(path, model=None):
     path : str or Path
     model : DeformationModel or path of a model file, optional
         A model that replaces the file's own (``gdfe simulate --model``).
+    process : dict, optional
+        Process variables for the model's process mechanisms, over the file's ``[process]``
+        table (``gdfe simulate --process``).
     """
     try:
         import tomllib
@@ -457,6 +469,11 @@ def load_design(path, model=None):
         doc = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as exc:
         raise GdfeError(f"{path.name}: not valid TOML: {exc}") from None
+    proc = doc.get("process", {})
+    if not isinstance(proc, dict) or not all(isinstance(v, (int, float, str)) and not isinstance(v, bool)
+                                             for v in proc.values()):
+        raise GdfeError(f"{path.name}: [process]: expected names with numbers or text labels, got {proc!r}")
+    proc = {**proc, **(process or {})}
     film = doc.get("film")
     if not isinstance(film, dict):
         raise GdfeError(f"{path.name}: missing [film] table (h, and R or d)")
@@ -497,21 +514,23 @@ def load_design(path, model=None):
         raise GdfeError(f"{path.name}: [film] needs R (contraction ratio) or d (passive thickness, mm)")
     try:
         if kind == "hinge":
-            des = hinge(spec["length"], d=d, R=R, h=h, nz=nz, isotropy=iso, model=model,
+            des = hinge(spec["length"], d=d, R=R, h=h, nz=nz, isotropy=iso, model=model, process=proc,
                         **{k: spec[k] for k in ("width", "panel_length", "cell_size", "face") if k in spec})
         elif kind == "layout":
-            des = from_rows(spec["rows"], R, h=h, pixel=spec["pixel"], nz=nz, isotropy=iso, d=d, model=model)
+            des = from_rows(spec["rows"], R, h=h, pixel=spec["pixel"], nz=nz, isotropy=iso, d=d, model=model,
+                            process=proc)
         elif kind in ("svg", "fold"):  # a drawing with this file's film (gdfe.fabrication.drawings)
             from gdfe.fabrication.drawings import drawing_design
 
             des = drawing_design(kind, spec, path, lambda top, bottom, pixel, mask: from_masks(
-                top, bottom, pixel, R, h=h, nz=film.get("nz", 1), isotropy=iso, film=mask, d=d, model=model))
+                top, bottom, pixel, R, h=h, nz=film.get("nz", 1), isotropy=iso, film=mask, d=d, model=model,
+                process=proc))
         else:
             base = path.parent
             film_mask = base / spec["film"] if "film" in spec else None
             des = from_masks(base / spec["top"], base / spec["bottom"], spec["pixel"], R, h=h,
                              nz=film.get("nz", 1), isotropy=iso, film=film_mask, d=d,
-                             d_top=spec.get("d_top"), d_bottom=spec.get("d_bottom"), model=model)
+                             d_top=spec.get("d_top"), d_bottom=spec.get("d_bottom"), model=model, process=proc)
     except KeyError as exc:
         raise GdfeError(f"{path.name}: [{kind}] is missing {exc.args[0]!r}") from None
     des.meta.setdefault("source", str(path))

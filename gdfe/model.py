@@ -26,7 +26,10 @@ diagnosis's hinge model (:mod:`gdfe.diagnosis.effects`) carried to any design:
    ``kappa_T`` is Timoshenko's bilayer curvature (:func:`gdfe.timoshenko.bilayer_curvature`):
    the ``passive_stiffness`` effect of the diagnosis.
 2. **per-cell mechanisms** on ``c``: ``cure_depth`` (every passive region acts as
-   ``d + delta``), ``film_thickening`` (the film thickens as it shrinks, ``h (1 + beta c)``:
+   ``d + delta``), the process mechanisms, which need the part's process variables
+   (``process={"T_C": 150, "lot": "B"}``): ``partial_activation`` (the fraction
+   ``f(x) = 1 / (1 + exp(-rate (x - x50)))`` of the contraction reached at process value ``x``)
+   and ``batch`` (a factor ``scale[g]`` per group label ``g``), ``film_thickening`` (the film thickens as it shrinks, ``h (1 + beta c)``:
    the fold's curvature ``c / h`` becomes ``c / (h (1 + beta c))``, so a cell contracts by
    ``c / (1 + beta c)`` on the film it is meshed on).
 3. **geometric mechanisms**, which need the design's layout: ``saturation`` (the fold of
@@ -89,6 +92,11 @@ PRINCIPLES = {
 #: The mechanisms a model may switch on, in the order they act (see the module docstring).
 MECHANISMS = {
     "cure_depth": _Term(("delta",), ("mm",), "every passive region acts as d + delta"),
+    "partial_activation": _Term(("x50", "rate"), ("unit of the column", "1 / unit of the column"),
+                                "the film reaches the fraction f(x) = 1 / (1 + exp(-rate (x - x50))) of its "
+                                "contraction, x a process variable (oven temperature, time, ...)"),
+    "batch": _Term((), (), "each group (film lot, print job, oven run) contracts by its own factor "
+                           "scale[g] (1 for the first label in sorted order)"),
     "film_thickening": _Term(("beta",), ("",), "the film thickens to h (1 + beta c) as it shrinks"),
     "saturation": _Term(("alpha_max",), ("rad",),
                         "the fold of every free run between coat edges is capped as alpha_max tanh(alpha/alpha_max); "
@@ -182,6 +190,8 @@ class DeformationModel:
     data: dict = dataclasses.field(default_factory=dict)
     warnings: tuple = ()
     version: str = ""
+    columns: dict = dataclasses.field(default_factory=dict)
+    labels: tuple = ()
 
     def __post_init__(self):
         check_choice("principle", self.principle, PRINCIPLES)
@@ -195,7 +205,22 @@ class DeformationModel:
         params = {}
         for k, v in dict(self.params).items():
             params[k] = v if isinstance(v, Parameter) else Parameter(check_number(k, v))
+        columns = dict(self.columns)
+        for m in ("partial_activation", "batch"):
+            if m in mech and not isinstance(columns.get(m), str):
+                raise GdfeError(f"columns: expected the name of the process column of {m}, got "
+                                f"{describe(columns.get(m))}")
+        columns = {m: c for m, c in columns.items() if m in mech}
+        object.__setattr__(self, "columns", columns)
+        labels = tuple(str(g) for g in self.labels)
+        if "batch" in mech:
+            if len(labels) < 2 or len(set(labels)) != len(labels):
+                raise GdfeError(f"labels: expected two or more distinct group labels for batch, got {list(labels)}")
+            labels = tuple(sorted(labels))
+        object.__setattr__(self, "labels", labels if "batch" in mech else ())
         needed = list(PRINCIPLES[self.principle].params) + [p for m in mech for p in MECHANISMS[m].params]
+        if "batch" in mech:
+            needed += [f"scale[{g}]" for g in labels[1:]]
         missing = [p for p in needed if p not in params]
         if missing:
             raise GdfeError(f"params: expected {', '.join(needed)} for principle {self.principle!r} and "
@@ -206,6 +231,7 @@ class DeformationModel:
         units = dict(zip(PRINCIPLES[self.principle].params, PRINCIPLES[self.principle].units))
         for m in mech:
             units.update(zip(MECHANISMS[m].params, MECHANISMS[m].units))
+        units.update({f"scale[{g}]": "" for g in labels})
         for k, p in params.items():
             check_number(k, p.value)
             if not p.unit:
@@ -249,11 +275,43 @@ class DeformationModel:
                            f"predictions only near the data it was fitted to")
         return out
 
-    def contraction(self, d, h):
+    def process_factor(self, process=None):
+        """The factor of the process mechanisms on the contraction for ``process`` (a dict of
+        the part's process variables: the column of ``partial_activation``, the group label
+        of ``batch``); 1 for a model without them.
+
+        Raises
+        ------
+        GdfeError
+            Naming the process variable the model needs and did not get.
+        """
+        process = {} if process is None else dict(process)
+        f = 1.0
+        for m in ("partial_activation", "batch"):
+            if m not in self.mechanisms:
+                continue
+            col = self.columns[m]
+            if col not in process:
+                raise GdfeError(f"process: model {self.name!r} needs {col} ({m}); give it as "
+                                f"process={{{col!r}: ...}} (gdfe --process {col}=VALUE)")
+            v = process[col]
+            if m == "partial_activation":
+                x = check_number(f"process {col}", v)
+                z = np.clip(self.value("rate") * (x - self.value("x50")), -60.0, 60.0)
+                f *= 0.5 * (1.0 + math.tanh(0.5 * z))
+            else:
+                g = str(v)
+                if g not in self.labels:
+                    raise GdfeError(f"process {col}: expected one of the groups the model was fitted to "
+                                    f"({', '.join(self.labels)}), got {g!r}")
+                f *= 1.0 if g == self.labels[0] else self.value(f"scale[{g}]")
+        return f
+
+    def contraction(self, d, h, process=None):
         """Contraction ``c = 1 - R`` of a free face on a coat of thickness ``d`` [mm], film ``h`` [mm].
 
-        Stages 1 and 2 (principle, ``cure_depth``, ``film_thickening``); the geometric
-        mechanisms need a design (:meth:`apply`).
+        Stages 1 and 2 (principle, ``cure_depth``, the process mechanisms at ``process``,
+        ``film_thickening``); the geometric mechanisms need a design (:meth:`apply`).
 
         Raises
         ------
@@ -267,7 +325,7 @@ class DeformationModel:
             bad = np.atleast_1d(d)[np.atleast_1d(d_eff <= 0)][0]
             raise GdfeError(f"d: {bad:g} mm with cure_depth delta = {self.value('delta'):g} mm leaves no coat "
                             f"(model {self.name!r})")
-        c = self._principle(d_eff, h)
+        c = self._principle(d_eff, h) * self.process_factor(process)
         if "film_thickening" in self.mechanisms:
             c = c / (1.0 + self.value("beta") * c)
         if np.any(~(c < 1)):
@@ -277,16 +335,19 @@ class DeformationModel:
             cb = float(np.atleast_1d(c)[bad_mask][0])
             raise GdfeError(f"d={bad:g} mm gives R={1 - cb:.4g} by model {self.name!r} ({self.describe_principle()}, "
                             f"h={hb:g} mm); a contraction ratio must lie in (0, 1], which needs "
-                            f"d > {self.d_min(hb):.4g} mm")
+                            f"d > {self.d_min(hb, process):.4g} mm")
         return c
 
-    def d_min(self, h=paper.H):
-        """Thinnest passive layer [mm] for which the model gives R > 0 at film thickness ``h``."""
+    def d_min(self, h=paper.H, process=None):
+        """Thinnest passive layer [mm] for which the model gives R > 0 at film thickness ``h``
+        (for the process mechanisms: at ``process``, or fully activated and in the reference
+        group where none is given)."""
+        factor = 1.0 if process is None else self.process_factor(process)
         from scipy.optimize import brentq
 
         def excess(log_d):
             with np.errstate(all="ignore"):
-                c = self._stage_c(np.exp(log_d), h)
+                c = self._stage_c(np.exp(log_d), h, factor)
             return (c if np.isfinite(c) else 2.0) - 1.0
 
         lo, hi = np.log(1e-6), np.log(1e3)
@@ -296,19 +357,19 @@ class DeformationModel:
             return math.inf
         return float(np.exp(brentq(excess, lo, hi, xtol=1e-12)))
 
-    def _stage_c(self, d, h):
+    def _stage_c(self, d, h, factor=1.0):
         """Stages 1-2 without checks (:meth:`contraction`'s formula)."""
         d_eff = d + self.value("delta") if "cure_depth" in self.mechanisms else d
         if d_eff <= 0:
             return math.inf
-        c = float(self._principle(d_eff, h))
+        c = float(self._principle(d_eff, h)) * factor
         if "film_thickening" in self.mechanisms:
             c = c / (1.0 + self.value("beta") * c)
         return c
 
-    def ratio(self, d, h=paper.H):
+    def ratio(self, d, h=paper.H, process=None):
         """Contraction ratio ``R = 1 - c`` for passive thickness ``d`` [mm] (see :meth:`contraction`)."""
-        return 1.0 - self.contraction(d, h)
+        return 1.0 - self.contraction(d, h, process)
 
     def _principle(self, d, h):
         p = {k: v.value for k, v in self.params.items()}
@@ -322,10 +383,10 @@ class DeformationModel:
 
         return h * bilayer_curvature(h, d, p["E_ratio"], p["mismatch"])
 
-    def hinge_angle(self, L, d, h=paper.H):
+    def hinge_angle(self, L, d, h=paper.H, process=None):
         """The model's closed form for the paper's hinge specimen [rad] (what :meth:`apply` gives
         a hinge of width ``L`` up to GDFE's discretisation)."""
-        c = self.contraction(d, h)
+        c = self.contraction(d, h, process)
         L = np.asarray(L, float)
         if "hinge_length" in self.mechanisms:
             L = L + self.value("lambda")
@@ -355,13 +416,15 @@ class DeformationModel:
         return "\n".join(lines)
 
     # -- the model on a design -------------------------------------------------------------------
-    def apply(self, design):
+    def apply(self, design, process=None):
         """The design with every cell's contraction from this model.
 
         Parameters
         ----------
         design : Design
             Its cells carry the passive thickness ``design.d`` they were printed with.
+        process : dict, optional
+            The part's process variables, for ``partial_activation`` and ``batch``.
 
         Returns
         -------
@@ -382,14 +445,14 @@ class DeformationModel:
                             "build the design with d (e.g. gdfe.hinge(L, d=0.33)) or give R instead of a model")
         R = np.ones(design.n_cells)
         if one_side.any():
-            R[one_side] = 1.0 - self.contraction(d[one_side], design.h)
+            R[one_side] = 1.0 - self.contraction(d[one_side], design.h, process)
         if free.any():
             d0 = design.meta.get("d_mm")
             d0 = float(np.nanmedian(d[one_side])) if d0 is None and one_side.any() else d0
             if d0 is None:
                 raise GdfeError("design: cells free on both faces shrink by the model's contraction at the "
                                 "design's nominal d; give d")
-            R[free] = 1.0 - self.contraction(float(d0), design.h)
+            R[free] = 1.0 - self.contraction(float(d0), design.h, process)
         out = dataclasses.replace(design, R=R, contraction=None, model=self)
         if self.geometric:
             out = dataclasses.replace(out, contraction=self._geometric(out))
@@ -451,6 +514,10 @@ class DeformationModel:
                "mechanisms": list(self.mechanisms), "source": self.source,
                "gdfe_version": self.version,
                "parameters": {k: p.as_dict() for k, p in self.params.items()}}
+        if self.columns:
+            out["columns"] = dict(self.columns)
+        if self.labels:
+            out["labels"] = list(self.labels)
         if self.data:
             out["data"] = dict(self.data)
         out["warnings"] = list(self.warnings)
@@ -516,12 +583,25 @@ class DeformationModel:
         se = getattr(fit, "se", None)
         se = dict(zip(fit.model.param_names, np.asarray(se, float))) if se is not None else {}
         at_bound = set(getattr(fit, "at_bound", ()) or ())
-        params = {k: Parameter(float(v), se=_finite_or_none(se.get(k)), at_bound=k in at_bound)
+        ci = getattr(fit, "ci95", None)
+        ci = dict(zip(fit.model.param_names, np.asarray(ci, float))) if ci is not None else {}
+
+        def interval(k):
+            lohi = ci.get(k)
+            return None if lohi is None or not np.all(np.isfinite(lohi)) else (float(lohi[0]), float(lohi[1]))
+
+        params = {k: Parameter(float(v), se=_finite_or_none(se.get(k)), ci95=interval(k), at_bound=k in at_bound)
                   for k, v in values.items()}
         unknown = [e for e in effects if e not in MECHANISMS and e != "passive_stiffness"]
         if unknown:
-            raise GdfeError(f"effect: {', '.join(unknown)} has no mechanism on a design yet; expected one of "
+            raise GdfeError(f"effect: {', '.join(unknown)} has no mechanism on a design; expected one of "
                             f"{', '.join(['passive_stiffness', *MECHANISMS])}")
+        columns = {}
+        if "partial_activation" in effects:
+            columns["partial_activation"] = fit.model.process
+        if "batch" in effects:
+            columns["batch"] = fit.model.group
+        labels = tuple(getattr(fit.model, "labels", None) or ())
         principle = "timoshenko" if "passive_stiffness" in effects else "eq1"
         info = _provenance_file(data) if data is not None else {}
         if n_tests is not None:
@@ -532,7 +612,7 @@ class DeformationModel:
             info["held_out"] = {"loo": "leave one test out", "logo": "leave one group out"}.get(held_out, held_out)
         mech = tuple(e for e in effects if e != "passive_stiffness")
         return cls(principle=principle, params=params, mechanisms=mech, name=fit.model.name,
-                   source="gdfe diagnose", data=info, version=__version__)
+                   source="gdfe diagnose", data=info, version=__version__, columns=columns, labels=labels)
 
 
 def _finite_or_none(x):
@@ -560,7 +640,7 @@ def as_model(model, base=None):
 
 # -- reading model files --------------------------------------------------------------------------
 _TOP_KEYS = ("format", "name", "principle", "mechanisms", "source", "gdfe_version", "parameters", "data",
-             "warnings")
+             "warnings", "columns", "labels")
 _PARAM_KEYS = ("value", "unit", "se", "ci95", "at_bound")
 _DATA_KEYS = ("file", "sha256", "n_tests", "rmse_rad", "held_out_rmse_rad", "held_out")
 
@@ -663,10 +743,18 @@ def load_model(path):
     warnings = doc.get("warnings", [])
     if not isinstance(warnings, list) or not all(isinstance(w, str) for w in warnings):
         raise GdfeError(f"{name}: warnings: expected a list of strings, got {describe(warnings)}")
+    columns = doc.get("columns", {})
+    if not isinstance(columns, dict) or not all(isinstance(v, str) for v in columns.values()):
+        raise GdfeError(f"{name}: columns: expected a table of column names, got {describe(columns)}")
+    _unknown(f"{name}: columns", columns, ("partial_activation", "batch"))
+    labels = doc.get("labels", [])
+    if not isinstance(labels, list) or not all(isinstance(v, str) for v in labels):
+        raise GdfeError(f"{name}: labels: expected a list of group labels, got {describe(labels)}")
     try:
         model = DeformationModel(principle=principle, params=parsed, mechanisms=tuple(mech),
                                  name=doc.get("name"), source=doc.get("source", ""), data=data,
-                                 warnings=tuple(warnings), version=doc.get("gdfe_version", ""))
+                                 warnings=tuple(warnings), version=doc.get("gdfe_version", ""),
+                                 columns=columns, labels=tuple(labels))
     except GdfeError as exc:
         raise GdfeError(f"{name}: {exc}") from None
     for w in model.warnings:

@@ -271,3 +271,46 @@ def test_a_couple_the_model_cannot_fold_is_an_error_naming_it():
         inv.strip_pattern([(3.0, 1.0)], model=m, d=0.33)
     pat = inv.strip_pattern([(3.0, 1.0)], model=m, d=0.33, clamp=True)
     assert pat.clamped[0]
+
+
+# -- the diagnosis's model, process mechanisms ------------------------------------------------------
+def test_diagnose_writes_the_chosen_model_and_another_on_request(tmp_path, capsys):
+    best, sat = tmp_path / "best.toml", tmp_path / "sat.toml"
+    assert main(["diagnose", str(gdfe.TABLE1), "--check", "none", "--model-out", str(best)]) == 0
+    assert main(["diagnose", str(gdfe.TABLE1), "--check", "none", "--model-out", str(sat),
+                 "--effect", "saturation"]) == 0
+    out = capsys.readouterr().out
+    assert "WARNING: lambda" in out  # the chosen pair's doubtful parameters are said out loud
+    m, s = load_model(best), load_model(sat)
+    assert m.name == "cure_depth+hinge_length" and m.params["lambda"].se is not None
+    assert s.mechanisms == ("saturation",) and s.data["n_tests"] == 18
+    # the tube of docs/examples with the saturation model: twelve hinges of two 0.25 mm cells
+    design, options = gdfe.load_design(EXAMPLES / "tube.toml", model=sat)
+    turn = gdfe.curvature_profile(gdfe.simulate(design, **options))["turn"]
+    assert turn == pytest.approx(12 * float(s.hinge_angle(0.5, 0.33)), rel=0.06)
+    capsys.readouterr()
+    assert main(["diagnose", str(gdfe.TABLE1), "--check", "none", "--model-out", str(sat), "--effect", "warp"]) == 1
+    assert "--effect: expected one of the fitted models" in capsys.readouterr().err
+
+
+def test_partial_activation_and_batch_act_through_the_process_variables(tmp_path):
+    m = DeformationModel("eq1", {"K": 0.37, "x50": 120.0, "rate": 0.1, "scale[B]": 0.8},
+                         mechanisms=("partial_activation", "batch"),
+                         columns={"partial_activation": "T_C", "batch": "lot"}, labels=("B", "A"))
+    assert m.labels == ("A", "B")  # sorted: A is the reference
+    c_full = 0.37 * (0.29 / 0.33) ** 1.5
+    f = 1 / (1 + np.exp(-0.1 * (130 - 120)))
+    assert m.contraction(0.33, 0.29, {"T_C": 130, "lot": "B"}) == pytest.approx(c_full * f * 0.8, rel=1e-12)
+    assert m.contraction(0.33, 0.29, {"T_C": 130, "lot": "A"}) == pytest.approx(c_full * f, rel=1e-12)
+    with pytest.raises(gdfe.GdfeError, match="process: model .* needs T_C"):
+        m.contraction(0.33, 0.29, {"lot": "A"})
+    with pytest.raises(gdfe.GdfeError, match="process lot: expected one of the groups .*A, B.*got 'C'"):
+        m.contraction(0.33, 0.29, {"T_C": 130, "lot": "C"})
+    back = load_model(m.save(tmp_path / "p.toml"))
+    assert back.columns == m.columns and back.labels == m.labels
+    # a design file's [process] table, and the GDFE hinge against the closed form
+    (tmp_path / "d.toml").write_text('[film]\nd = 0.33\nmodel = "p.toml"\n[hinge]\nlength = 2.0\n'
+                                     '[process]\nT_C = 130\nlot = "B"\n')
+    des, _ = gdfe.load_design(tmp_path / "d.toml")
+    alpha = gdfe.fold_angle(gdfe.simulate(des))
+    assert alpha == pytest.approx(float(m.hinge_angle(2.0, 0.33, 0.29, {"T_C": 130, "lot": "B"})), abs=0.005)

@@ -47,6 +47,28 @@ def using_scheduler(address):
             os.environ[SCHEDULER_ENV] = old
 
 
+def _process(text):
+    """``NAME=VALUE[,NAME=VALUE...]`` -> dict; values that read as numbers are numbers."""
+    import argparse
+
+    out = {}
+    for item in filter(None, (t.strip() for t in text.split(","))):
+        name, eq, value = item.partition("=")
+        if not eq or not name.strip() or not value.strip():
+            raise argparse.ArgumentTypeError(f"expected NAME=VALUE pairs separated by commas, got {item!r}")
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            out[name.strip()] = value.strip()
+    return out
+
+
+def process_arg(p):
+    """``--process NAME=VALUE,...``: the part's process variables for a model's process mechanisms."""
+    p.add_argument("--process", type=_process, default=None, metavar="NAME=VALUE,...",
+                   help="process variables of the part for the deformation model (e.g. T_C=150,lot=B)")
+
+
 def solver_args(p, defaults_from_file=False):
     """The options of :func:`gdfe.simulate` on a subcommand's parser."""
     from gdfe.solver import METHODS

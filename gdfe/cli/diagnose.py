@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from gdfe._validation import GdfeError
 from gdfe.cli._common import emit
 from gdfe.diagnosis.forward import CELLS
 from gdfe.diagnosis.shape import ALIGNMENTS
@@ -36,6 +37,11 @@ def register(sub):
     p.add_argument("--no-pairs", action="store_true", help="fit single effects only")
     p.add_argument("--check", choices=["none", *CELLS], default="coarse",
                    help="resolution of the GDFE solves that check the closed forms (default coarse)")
+    p.add_argument("--model-out", type=Path, default=None, metavar="M.toml",
+                   help="save the chosen model as a deformation model file (gdfe simulate/hinge --model)")
+    p.add_argument("--effect", default=None, metavar="NAME",
+                   help="with --model-out: save this fitted model of the catalogue instead of the chosen one "
+                        "(e.g. saturation, cure_depth+hinge_length)")
     p.set_defaults(func=_cmd_diagnose)
 
     p = sub.add_parser(
@@ -64,6 +70,11 @@ def _cmd_diagnose(args):
                     check=None if args.check == "none" else args.check)
     obj = diag.as_dict()
     text = diag.text()
+    if args.effect is not None and args.model_out is None:
+        raise GdfeError("--effect: expected --model-out too (it names the model to save)")
+    if args.model_out is not None:
+        obj["model_file"], line = _save_model(diag, args)
+        text += "\n" + line
     if args.report:
         from gdfe.diagnosis.figures import write_report
 
@@ -75,6 +86,28 @@ def _cmd_diagnose(args):
         text += f"\nwrote {args.json_out}"
     emit(obj, args.json_out == "-", text)
     return 0 if diag.best.success else 3
+
+
+def _save_model(diag, args):
+    """The chosen (or ``--effect``) fit as a deformation model file; returns (path, text)."""
+    import gdfe
+
+    fits = [diag.baseline] + list(diag.fits)
+    if args.effect is None:
+        fit = diag.best
+    else:
+        names = [f.name for f in fits]
+        matches = [f for f in fits if f.name == args.effect or f.model.name.split("[")[0] == args.effect]
+        if not matches:
+            raise GdfeError(f"--effect: expected one of the fitted models {', '.join(names)}, got {args.effect!r}")
+        fit = matches[0]
+    model = gdfe.DeformationModel.from_effect_fit(fit, data=args.data, n_tests=len(diag.tests),
+                                                  held_out=diag.held_out if fit.held_out_rmse(diag.held_out) is not None
+                                                  else "loo")
+    model.save(args.model_out)
+    text = f"wrote {args.model_out} (deformation model {model.name!r})" + "".join(
+        f"\nWARNING: {w}" for w in model.warnings)
+    return str(args.model_out), text
 
 
 def _cmd_diagnose_shape(args):

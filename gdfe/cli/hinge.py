@@ -7,7 +7,8 @@ from pathlib import Path
 
 from gdfe import paper
 from gdfe._validation import GdfeError, check_int
-from gdfe.cli._common import contact_fields, contact_text, emit, exit_status, solve, solver_args, write_outputs
+from gdfe.cli._common import (contact_fields, contact_text, emit, exit_status, process_arg, solve, solver_args,
+                               write_outputs)
 
 __all__ = ["register", "run"]
 
@@ -29,6 +30,7 @@ def register(sub):
     p.add_argument("--nz", type=int, default=1, help="cell layers through the film (default 1)")
     p.add_argument("--isotropy", type=float, default=1.0,
                    help="transverse/longitudinal shrink: 1 isotropic (default), 0 uniaxial")
+    process_arg(p)
     solver_args(p)
     p.add_argument("--out", type=Path, help="write the VTU series, a PNG and result.json here")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
@@ -47,7 +49,7 @@ def run(args):
     check_int("--cells", args.cells)
     design = gdfe.hinge(args.length, d=args.d, h=args.h, K=K, R=args.R, width=args.width,
                         panel_length=args.panel_length, cell_size=args.length / args.cells, nz=args.nz,
-                        isotropy=args.isotropy, model=model)
+                        isotropy=args.isotropy, model=model, process=args.process)
     res = solve(design, args)
     alpha = gdfe.fold_angle(res)
     R = float(design.meta["R"])
@@ -63,7 +65,7 @@ def run(args):
     }
     if model is not None:
         out["model"] = model.as_dict()
-        out["alpha_model_rad"] = float(model.hinge_angle(args.length, args.d, args.h))
+        out["alpha_model_rad"] = float(model.hinge_angle(args.length, args.d, args.h, args.process))
     if model is not None:
         ref = out["alpha_model_rad"]
     else:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gdfe.cli._common import contact_text, emit, exit_status, solve, solver_args, write_outputs
+from gdfe.cli._common import contact_text, emit, exit_status, process_arg, solve, solver_args, write_outputs
 
 __all__ = ["register", "run"]
 
@@ -16,6 +16,7 @@ def register(sub):
     p.add_argument("--out", type=Path, required=True, help="output directory")
     p.add_argument("--model", type=Path, default=None,
                    help="deformation model file (TOML) replacing the design's own (its cells' R from their d)")
+    process_arg(p)
     solver_args(p, defaults_from_file=True)
     p.add_argument("--export", type=_export_formats, default=(), metavar="stl[,obj,ply,fold,html,zip]",
                    help="also write the folded shape beside the VTU series: the film's surface as STL, OBJ, "
@@ -43,7 +44,7 @@ def _export_formats(text):
 def run(args):
     import gdfe
 
-    design, options = gdfe.load_design(args.design, model=args.model)
+    design, options = gdfe.load_design(args.design, model=args.model, process=args.process)
     res = solve(design, args, options)
     summary = {"design": str(args.design), **design.summary(), **res.summary()}
     if design.model is not None:

@@ -180,7 +180,7 @@ class Result:
 
 
 def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=None,
-             history=6, seed=0, model=None, contact="auto", dhat=None, on_drift="warn"):
+             history=6, seed=0, model=None, process=None, contact="auto", dhat=None, on_drift="warn"):
     """Simulate the heat-activated shape change of a design.
 
     Parameters
@@ -228,6 +228,9 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
         Simulate the design with the contractions this deformation model gives its cells
         (:meth:`gdfe.DeformationModel.apply`; the design must carry its passive thickness
         ``d``) instead of those it was made with.
+    process : dict, optional
+        The part's process variables for the model's process mechanisms (``partial_activation``,
+        ``batch``), e.g. ``{"T_C": 150}``.
     contact : {"auto", "on", "off"}
         Self-contact, which keeps the film from passing through itself
         (:mod:`gdfe.solver.contact`; needs the IPC Toolkit, ``pip install 'gdfe[contact]'``).
@@ -269,7 +272,7 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
     method = check_choice("method", method, METHODS)
     check_instance("design", design, Design)
     if model is not None:
-        design = as_model(model).apply(design)
+        design = as_model(model).apply(design, process)
     contact = check_choice("contact", contact, CONTACT_MODES)
     if dhat is not None:
         dhat = float(check_positive("dhat", dhat))
