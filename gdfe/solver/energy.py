@@ -28,6 +28,7 @@ import scipy.sparse as sp
 from gdfe._validation import check_instance
 from gdfe.design import Design, Material
 from gdfe.solver.linalg import factorise
+from gdfe.solver.multigrid import MULTIGRID_CELLS, Multigrid, lattice
 
 __all__ = ["D8", "rest_shapes", "system_matrix", "rotations", "expmap", "energy", "RestState",
            "Orientation", "Assembly", "SolveStats", "LocalGlobal"]
@@ -310,12 +311,18 @@ class LocalGlobal:
     L_ff, L_fp : sparse matrices
         ``L`` restricted to the free rows, and the free and pinned columns.
     factor
-        ``L_ff`` factorised (:func:`gdfe.solver.factorise`): ``factor.solve(b)``.
+        ``L_ff`` factorised (:func:`gdfe.solver.factorise`): ``factor.solve(b)``; made on
+        first use.
+    multigrid : gdfe.solver.multigrid.Multigrid
+        A V-cycle hierarchy for ``L_ff``; made on first use.
+    uses_multigrid : bool
+        Whether the assembly step solves with :attr:`multigrid` (designs above
+        :data:`gdfe.solver.multigrid.MULTIGRID_CELLS` cells) instead of :attr:`factor`.
     B : (n, 8m) sparse matrix
         The scatter ``b = B @ T.reshape(8m, 3)``, ``B[v, 8i + k] = w_i`` where ``cells[i, k] == v``.
     timings : dict
-        Seconds spent so far in the factorisation and in the orientation and assembly
-        steps (the solve methods add theirs).
+        Seconds spent so far in the factorisation (or the multigrid set-up, ``"multigrid"``)
+        and in the orientation and assembly steps (the solve methods add theirs).
     """
 
     def __init__(self, design):
@@ -333,11 +340,42 @@ class LocalGlobal:
         self.free = np.delete(np.arange(self.n), self.pin)
         self.L_ff = self.L[self.free][:, self.free].tocsc()
         self.L_fp = self.L[self.free][:, [self.pin]]
-        self.factor = factorise(self.L_ff)
         self.B = sp.csr_matrix((np.repeat(self.w, 8), (self.cells.ravel(), np.arange(8 * m))),
                                shape=(self.n, 8 * m))
-        self.timings = {"factorise": time.perf_counter() - t0, "orientation": 0.0, "assembly": 0.0}
+        self.uses_multigrid = m > MULTIGRID_CELLS
+        self.timings = {"setup": time.perf_counter() - t0, "orientation": 0.0, "assembly": 0.0}
+        if not self.uses_multigrid:
+            self.factor  # noqa: B018  (factorised now: every assembly step uses it)
         self._rest_cache = None
+
+    @functools.cached_property
+    def factor(self):
+        """``L_ff`` factorised (:func:`gdfe.solver.factorise`), made on first use."""
+        t0 = time.perf_counter()
+        f = factorise(self.L_ff)
+        self.timings["factorise"] = self.timings.get("factorise", 0.0) + time.perf_counter() - t0
+        return f
+
+    @functools.cached_property
+    def multigrid(self) -> Multigrid:
+        """The V-cycle hierarchy of ``L_ff`` (:class:`gdfe.solver.multigrid.Multigrid`), made on first use."""
+        t0 = time.perf_counter()
+        mg = Multigrid(self.L_ff, lattice(self.design.mesh)[self.free])
+        self.timings["multigrid"] = self.timings.get("multigrid", 0.0) + time.perf_counter() - t0
+        return mg
+
+    def solve_free(self, rhs):
+        """``L_ff^{-1} rhs`` for ``rhs`` ``(n - 1, r)``: by :attr:`factor`, or by :attr:`multigrid` to round-off."""
+        if self.uses_multigrid:
+            return self.multigrid.solve(rhs)
+        return self.factor.solve(np.asfortranarray(rhs))
+
+    def approx_solve_free(self, rhs):
+        """An approximation of ``L_ff^{-1} rhs`` (symmetric positive definite in ``rhs``): one V-cycle,
+        or the factor's exact solve where the design has no multigrid."""
+        if self.uses_multigrid:
+            return self.multigrid.vcycle(rhs)
+        return self.factor.solve(np.asfortranarray(rhs))
 
     def rest(self, activation=1.0) -> RestState:
         """The :class:`RestState` of ``activation`` (the last one is kept for the next call)."""
@@ -361,18 +399,22 @@ class LocalGlobal:
         self.timings["orientation"] += time.perf_counter() - t0
         return Orientation(Q, S, max(E, 0.0))
 
-    def assemble(self, Q, V_pin, activation=1.0) -> Assembly:
+    def assemble(self, Q, V_pin, activation=1.0, solve=True) -> Assembly:
         """Assembly step: the vertices minimising Eq. 5 for rotations ``Q`` ``(m, 3, 3)``.
 
-        The vertex :attr:`pin` is held at ``V_pin`` ``(3,)`` [mm].
+        The vertex :attr:`pin` is held at ``V_pin`` ``(3,)`` [mm]. With ``solve=False``
+        only the right-hand side is made (``Assembly.V`` is None): the gradient needs no solve.
         """
         t0 = time.perf_counter()
         P = self.rest(activation).P
         T = np.einsum("mij,mkj->mki", Q, P).reshape(-1, 3)
         b = self.B @ T
+        if not solve:
+            self.timings["assembly"] += time.perf_counter() - t0
+            return Assembly(None, b)
         rhs = b[self.free] - self.L_fp @ V_pin[None, :]
         V = np.empty((self.n, 3))
-        V[self.free] = self.factor.solve(np.asfortranarray(rhs))
+        V[self.free] = self.solve_free(rhs)
         V[self.pin] = V_pin
         self.timings["assembly"] += time.perf_counter() - t0
         return Assembly(V, b)

@@ -1,0 +1,179 @@
+"""Geometric multigrid for the assembly matrix on a film's structured grid.
+
+Every design is meshed on a lattice (:func:`gdfe.mesh.sheet_mesh`): vertex ``(i, j, k)``
+at ``origin + (i dx, j dy, k dz)``. The assembly matrix ``L_ff`` (:mod:`gdfe.solver.energy`)
+is a graph Laplacian on that lattice (each cell couples its eight vertices equally), so
+the classical recipe works: coarsen 2 x 2 in the plane, keeping the layers through the
+film (they are few and strongly coupled), interpolate bilinearly (:func:`prolongation`),
+take the Galerkin products ``P^T A P`` as the coarse matrices (holes in the film and the
+pinned vertex need no special care), smooth with damped Jacobi, and factorise the
+coarsest level. One V-cycle (:meth:`Multigrid.vcycle`) is a symmetric positive definite
+approximation of ``L_ff^{-1}`` at a few matrix products' cost; :meth:`Multigrid.solve`
+iterates it inside conjugate gradients to a tolerance.
+
+Large designs use it in place of the sparse factorisation (``gdfe.solver.MULTIGRID_CELLS``):
+the factorisation's time and memory grow faster than the cells (SuperLU cannot factorise
+the 10^6-cell matrix in 24 GiB), a V-cycle's linearly. ``gdfe bench`` times both.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from gdfe.solver.linalg import factorise
+
+__all__ = ["MULTIGRID_CELLS", "MG_COARSEST", "MG_SMOOTHING", "lattice", "prolongation", "Multigrid"]
+
+#: Designs above this many cells solve the assembly step with the multigrid (in CG) and
+#: precondition the Newton steps with one V-cycle, instead of factorising ``L_ff``
+#: (measured crossover: ``gdfe bench``, docs/bench/bench.txt).
+MULTIGRID_CELLS = 20_000
+
+#: Levels are coarsened until one has at most this many vertices; it is factorised.
+MG_COARSEST = 4000
+#: Damped-Jacobi sweeps before and after each coarse correction.
+MG_SMOOTHING = 2
+
+
+def lattice(mesh):
+    """Lattice indices ``(i, j, k)`` of every vertex of a structured mesh, ``(n, 3)`` int array."""
+    X = mesh.points
+    return np.rint((X - X.min(axis=0)) / np.asarray(mesh.spacing)).astype(np.int64)
+
+
+def prolongation(ijk):
+    """Bilinear in-plane interpolation from the lattice coarsened 2 x 2 (layers kept).
+
+    Parameters
+    ----------
+    ijk : (n, 3) int array
+        Lattice indices of the fine vertices.
+
+    Returns
+    -------
+    P : (n, c) sparse matrix
+        Coarse vertex ``(I, J, k)`` sits on fine vertex ``(2I, 2J, k)``; a fine vertex
+        takes the mean of the two (four) coarse vertices around it along odd indices.
+    cijk : (c, 3) int array
+        Lattice indices of the coarse vertices.
+    """
+    i, j, k = ijk.T
+    odd_i, odd_j = i % 2 == 1, j % 2 == 1
+    rows, keys, vals = [], [], []
+    for a in (0, 1):
+        for b in (0, 1):
+            w = np.where(odd_i, 0.5, 1.0 - a) * np.where(odd_j, 0.5, 1.0 - b)
+            use = np.nonzero(w > 0)[0]
+            rows.append(use)
+            keys.append(np.column_stack([i[use] // 2 + a, j[use] // 2 + b, k[use]]))
+            vals.append(w[use])
+    rows, keys, vals = np.concatenate(rows), np.concatenate(keys), np.concatenate(vals)
+    ni, nj = keys[:, 0].max() + 1, keys[:, 1].max() + 1
+    flat = (keys[:, 2] * nj + keys[:, 1]) * ni + keys[:, 0]
+    mark = np.zeros(int(flat.max()) + 1, bool)
+    mark[flat] = True
+    number = np.cumsum(mark) - 1
+    used = np.nonzero(mark)[0]
+    cijk = np.column_stack([used % ni, (used // ni) % nj, used // (ni * nj)])
+    P = sp.csr_matrix((vals, (rows, number[flat])), shape=(ijk.shape[0], used.size))
+    return P, cijk
+
+
+class Multigrid:
+    """A V-cycle hierarchy for a symmetric positive definite lattice matrix.
+
+    Parameters
+    ----------
+    A : (n, n) sparse matrix
+        Symmetric positive definite (the assembly matrix without its pinned vertex).
+    ijk : (n, 3) int array
+        Lattice indices of its unknowns (:func:`lattice`).
+    coarsest : int, optional
+        Coarsen until a level has at most this many unknowns (default :data:`MG_COARSEST`).
+    smoothing : int
+        Jacobi sweeps before and after each coarse correction.
+
+    Attributes
+    ----------
+    levels : list of (A, P, w_over_diag)
+        Each level's matrix, its prolongation from the next level, and the Jacobi weight
+        over its diagonal.
+    """
+
+    def __init__(self, A, ijk, coarsest=None, smoothing=MG_SMOOTHING):
+        coarsest = MG_COARSEST if coarsest is None else coarsest
+        A = sp.csr_matrix(A)
+        self.levels = []
+        rng = np.random.default_rng(0)
+        while A.shape[0] > coarsest:
+            P, cijk = prolongation(ijk)
+            if P.shape[1] >= A.shape[0]:  # nothing left to coarsen
+                break
+            dinv = 1.0 / A.diagonal()
+            # damped Jacobi, weight 4 / (3 lambda_max(D^-1 A)): smooths the upper 3/4 of the spectrum
+            x = rng.standard_normal(A.shape[0])
+            lam = 1.0
+            for _ in range(12):
+                y = dinv * (A @ x)
+                lam = float(np.linalg.norm(y) / np.linalg.norm(x))
+                x = y / np.linalg.norm(y)
+            self.levels.append((A, P, (4.0 / (3.0 * 1.05 * lam)) * dinv))
+            A, ijk = (P.T @ A @ P).tocsr(), cijk
+        self.coarse = factorise(A)
+        self.coarse_size = A.shape[0]
+        self.smoothing = int(smoothing)
+
+    @property
+    def n(self) -> int:
+        return self.levels[0][0].shape[0] if self.levels else self.coarse_size
+
+    def vcycle(self, b, level=0):
+        """One V-cycle from zero for ``b`` ``(n,)`` or ``(n, r)``: an approximation of ``A^{-1} b``."""
+        if level == len(self.levels):
+            return self.coarse.solve(np.asfortranarray(b))
+        A, P, wd = self.levels[level]
+        wd = wd[:, None] if b.ndim == 2 else wd
+        x = wd * b
+        for _ in range(self.smoothing - 1):
+            x += wd * (b - A @ x)
+        x += P @ self.vcycle(P.T @ (b - A @ x), level + 1)
+        for _ in range(self.smoothing):
+            x += wd * (b - A @ x)
+        return x
+
+    def solve(self, b, rtol=1e-11, max_iter=100):
+        """``A^{-1} b`` by conjugate gradients preconditioned with :meth:`vcycle`, column by column together.
+
+        Stops when every column's residual is below ``rtol`` times its right-hand side's
+        norm; raises ``RuntimeError`` when ``max_iter`` iterations do not get there.
+        """
+        b = np.asarray(b, float)
+        one = b.ndim == 1
+        B = b[:, None] if one else b
+        A = self.levels[0][0] if self.levels else None
+        if A is None:
+            x = self.coarse.solve(np.asfortranarray(B))
+            return x.ravel() if one else x
+        X = np.zeros_like(B)
+        R = B.copy()
+        stop = rtol * np.linalg.norm(B, axis=0)
+        Z = self.vcycle(R)
+        Pd = Z.copy()
+        rz = np.einsum("ij,ij->j", R, Z)
+        for _ in range(max_iter):
+            if np.all(np.linalg.norm(R, axis=0) <= stop):
+                return X.ravel() if one else X
+            AP = A @ Pd
+            pap = np.einsum("ij,ij->j", Pd, AP)
+            alpha = np.where(pap > 0, rz / np.where(pap > 0, pap, 1.0), 0.0)
+            X += alpha * Pd
+            R -= alpha * AP
+            Z = self.vcycle(R)
+            rz_new = np.einsum("ij,ij->j", R, Z)
+            Pd = Z + np.where(rz > 0, rz_new / np.where(rz > 0, rz, 1.0), 0.0) * Pd
+            rz = rz_new
+        if np.all(np.linalg.norm(R, axis=0) <= stop):
+            return X.ravel() if one else X
+        raise RuntimeError(f"multigrid CG: residual {np.max(np.linalg.norm(R, axis=0) / stop) * rtol:.2e} "
+                           f"after {max_iter} iterations")

@@ -1,0 +1,57 @@
+"""Geometric multigrid for the assembly matrix: interpolation, symmetry, solves, same shapes."""
+
+import sys
+
+import numpy as np
+import pytest
+
+import gdfe
+import gdfe.solver.energy  # noqa: F401  (the module; gdfe.solver.energy is also a function)
+from gdfe.solver import Solver
+from gdfe.solver.multigrid import Multigrid, lattice, prolongation
+from studies.bench import mask_sheet
+
+
+def _disc(n=40, nz=2):
+    x = (np.arange(n) + 0.5) / n - 0.5
+    X, Y = np.meshgrid(x, x, indexing="ij")
+    film = np.hypot(X, Y) <= 0.5
+    top = np.mod(np.arange(n), 6)[:, None] * np.ones((1, n), int) >= 2
+    return gdfe.from_masks(top, np.ones((n, n), bool), 0.1, 0.7, nz=nz, film=film)
+
+
+def test_prolongation_is_exact_for_affine_fields_on_each_layer():
+    des = _disc()
+    ijk = lattice(des.mesh)
+    P, cijk = prolongation(ijk)
+    coarse = 0.3 * 2 * cijk[:, 0] - 1.7 * 2 * cijk[:, 1] + 5.0 * cijk[:, 2] + 0.25
+    fine = 0.3 * ijk[:, 0] - 1.7 * ijk[:, 1] + 5.0 * ijk[:, 2] + 0.25
+    np.testing.assert_allclose(P @ coarse, fine, atol=1e-12)
+    np.testing.assert_allclose(P.sum(axis=1).A.ravel(), 1.0)
+
+
+def test_vcycle_is_symmetric_positive_definite_and_solve_matches_the_factor():
+    des = _disc()
+    s = Solver(des)
+    mg = Multigrid(s.L_ff, lattice(des.mesh)[s.free], coarsest=200)
+    assert len(mg.levels) >= 2
+    rng = np.random.default_rng(7)
+    x, y = rng.standard_normal((2, len(s.free)))
+    assert x @ mg.vcycle(y) == pytest.approx(y @ mg.vcycle(x), rel=1e-10)
+    assert x @ mg.vcycle(x) > 0
+    b = rng.standard_normal((len(s.free), 3))
+    np.testing.assert_allclose(mg.solve(b, rtol=1e-12), s.factor.solve(b), rtol=0, atol=1e-9 * np.abs(s.factor.solve(b)).max())
+
+
+def test_multigrid_path_reaches_the_factorised_shape(monkeypatch):
+    des = gdfe.from_masks(*mask_sheet(900), 0.1, 0.7, nz=1)
+    ref = gdfe.simulate(des, tol=1e-9).check()
+    monkeypatch.setattr(sys.modules["gdfe.solver.energy"], "MULTIGRID_CELLS", 100)
+    monkeypatch.setattr(sys.modules["gdfe.solver.multigrid"], "MG_COARSEST", 150)
+    s = Solver(des)
+    assert s.uses_multigrid and len(s.multigrid.levels) >= 2
+    res = gdfe.simulate(des, tol=1e-9).check()
+    assert "multigrid" in res.timings and "factorise" not in res.timings
+    size = np.linalg.norm(np.ptp(des.mesh.points, axis=0))
+    assert gdfe.shape_distance(ref.points, res.points)["max"] < 1e-7 * size
+    assert res.energy == pytest.approx(ref.energy, rel=1e-9)
