@@ -20,22 +20,26 @@ def test_quick_bench_reports_every_section_and_verdict(capsys, tmp_path):
     methods = {r["method"] for r in res["hinges"]}
     assert methods == {"newton", "newton-cg", "anderson", "plain"}
     assert all(r["converged"] for r in res["hinges"] if r["method"].startswith("newton"))
-    assert len(res["sheets"]) == 3
+    assert [r["design"] for r in res["sheets"]] == ["corrugation"] * 3 + ["fig08-dome"]
     for row in res["sheets"]:
         assert row["converged"]
         assert row["peak_rss_mib"] >= row["rss_before_mib"] > 0
         assert set(row["split_s"]) >= {"orientation", "assembly"}
         lb = row["lower_bound"]
         assert lb["bound_s"] == pytest.approx(lb["solve_3rhs_s"] + lb["svd_s"])
+        assert lb["bound_polar_s"] == pytest.approx(lb["solve_3rhs_s"] + lb["polar_s"])
+        assert lb["bound_iterations"] == pytest.approx(row["seconds"] / lb["bound_s"])
+        assert row["tol"] > 0 and row["error_estimate_mm"] is not None
         assert lb["local_global_ratio"] > 0
         assert "superlu" in row["factorisation"]["n"]
     assert "skipped" in res["fem_comparison"]
     v = res["verdicts"]
-    assert set(v) == {"hinges", "fem", "sheet", "lower_bound", "growth"}
+    assert set(v) == {"hinges", "fem", "sheet", "sheet_1e6", "lower_bound", "growth", "gpu"}
+    assert v["gpu"]["note"] == "not built: no GPU available"
     assert isinstance(v["hinges"]["met"], bool)
     assert isinstance(v["lower_bound"]["met"], bool)
     assert isinstance(v["growth"]["value"], float)
-    assert v["fem"]["met"] is None and v["sheet"]["met"] is None  # not measured in --quick
+    assert v["fem"]["met"] is None and v["sheet"]["met"] is None and v["sheet_1e6"]["met"] is None  # not in --quick
     assert (tmp_path / "bench.json").is_file() and (tmp_path / "bench_scaling.png").is_file()
     assert len(list((tmp_path / "masks").glob("*.png"))) == 6
     text = format_table(res)
@@ -119,3 +123,32 @@ def test_time_at_equal_error_interpolates_log_log():
     levels = [(1e-1, 1.0), (1e-3, 100.0)]
     assert _time_at_error(levels, 1e-2) == pytest.approx(10.0)
     assert _time_at_error(levels, 1e-3) == pytest.approx(100.0)
+
+
+def test_richardson_limit_and_order_of_a_power_series():
+    from studies.bench import _richardson
+
+    a = [1.7 - 0.3 * h ** 1.6 for h in (0.4, 0.2, 0.1)]
+    limit, order = _richardson(a)
+    assert limit == pytest.approx(1.7, abs=1e-12) and order == pytest.approx(1.6, abs=1e-12)
+    assert _richardson([1.0, 1.2, 1.1])[1] is None  # not monotone: no order
+
+
+def test_time_at_error_interpolates_and_flags_extrapolation():
+    from studies.bench import _time_at
+
+    levels = [(1e-1, 1.0), (1e-2, 10.0), (1e-3, 100.0)]
+    assert _time_at(levels, 3e-2) == (pytest.approx(10 ** (1 - np.log10(3))), False)
+    t, extrapolated = _time_at(levels, 1e-4)  # finer than the finest level: along the log-log line
+    assert extrapolated and t == pytest.approx(1000.0)
+    assert _time_at(levels, 0.5) == (1.0, False)
+
+
+def test_freeform_sheet_is_the_figure8_plate_at_the_asked_cell_count():
+    from studies.bench import freeform_sheet
+    from studies.fig08_freeform import SIZE
+
+    top, bottom, film, pixel, R = freeform_sheet(10_000, "dome")
+    assert top.shape == (100, 100) and pixel == pytest.approx(SIZE / 100)
+    assert not film.all() and film.sum() == pytest.approx(np.pi / 4 * 100 ** 2, rel=0.02)
+    assert R == pytest.approx(0.6947, abs=1e-4)
