@@ -41,7 +41,8 @@ def multilevel_start(design, activation):
 
     Recursively down to :data:`MULTILEVEL_COARSEST` cells, whose level starts from the
     linearised start; every coarse level is solved by :func:`auto_method`'s method to
-    :data:`MULTILEVEL_TOL` (at most 50 iterations).
+    :data:`MULTILEVEL_TOL` (at most 50 iterations), and stops where it drifts between
+    near-equal states (``on_drift="stop"``): its shape is only the next level's start.
     """
     coarse, prolong = coarsen(design)
     solver = Solver(coarse)
@@ -49,7 +50,8 @@ def multilevel_start(design, activation):
         V = multilevel_start(coarse, activation)
     else:
         V = solver.linearised_start(coarse.mesh.points.copy(), activation)
-    stats = solver.solve(V, activation, method=auto_method(coarse), tol=MULTILEVEL_TOL, max_iter=50)
+    stats = solver.solve(V, activation, method=auto_method(coarse), tol=MULTILEVEL_TOL, max_iter=50,
+                         on_drift="stop")
     log.debug("multilevel: %d cells, %d iterations, residual %.2e", coarse.n_cells, stats.iterations,
               stats.residual)
     return prolong @ stats.points
