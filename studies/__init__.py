@@ -29,6 +29,8 @@ STUDIES = {
     "blind-diagnosis": "studies.blind_diagnosis",
     "transfer": "studies.transfer",
     "bench-scaling": "studies.bench_scaling",
+    "hinge-error": "studies.hinge_error",
+    "stopping": "studies.stopping",
     "contact": "studies.contact",
 }
 
