@@ -48,8 +48,8 @@ CG_RTOL_MIN = 1e-3
 CG_RTOL_MAX = 0.1
 #: Drift (see :func:`solve_newton`): over this many iterations ...
 DRIFT_WINDOW = 10
-#: ... the energy fell by less than this fraction of itself (its 5th-6th digit) ...
-DRIFT_ENERGY = 1e-5
+#: ... the energy fell by less than this fraction of itself (its 5th digit over ten iterations, the 6th in each) ...
+DRIFT_ENERGY = 1e-4
 #: ... while the estimated distance to the solution shrank by less than this factor.
 DRIFT_SHRINK = 0.1
 #: What a Newton solve does when it drifts: ``"warn"`` (say so and go on) or ``"stop"``.
