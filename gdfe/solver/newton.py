@@ -82,11 +82,14 @@ class CoarseSpace:
         ``Z (x) I3``.
     Lc3 : (3k, 3k) sparse matrix
         ``(Z_f^T L_ff Z_f) (x) I3``, the coarse n x n system for the three coordinates.
+    Zt : (k, n) sparse matrix
+        ``Z^T`` (CSR), made once: the restriction of every coarse correction.
     """
 
     Z: sp.csr_matrix
     Z3: sp.csr_matrix
     Lc3: sp.csc_matrix
+    Zt: sp.csr_matrix = None
 
 
 class ReducedHessian:
@@ -170,7 +173,7 @@ class ReducedHessian:
         Zf = Z[steps.free]
         Lc3 = sp.kron(Zf.T @ steps.L_ff @ Zf, sp.eye(3), format="csc")
         Z3 = sp.kron(Z, sp.eye(3), format="csr")
-        return CoarseSpace(Z=Z, Z3=Z3, Lc3=Lc3)
+        return CoarseSpace(Z=Z, Z3=Z3, Lc3=Lc3, Zt=Z.T.tocsr())
 
     # -- per step ------------------------------------------------------------------------
     def blocks(self, Q, S, rest, floor=1.0):
@@ -235,7 +238,7 @@ class ReducedHessian:
         """
         steps = self.steps
         cs = self.coarse
-        Z = cs.Z
+        Z, Zt = cs.Z, cs.Zt
         J, Jt = self.jacobian(RG)
         JZ = (J @ cs.Z3).tocsc()
         Hc = (2.0 * (1.0 + max(mu, MU_MIN))) * cs.Lc3 - 2.0 * (JZ.T @ JZ)
@@ -257,7 +260,7 @@ class ReducedHessian:
             return out
 
         def coarse(r):
-            return Z @ fc.solve((Z.T @ r).ravel()).reshape(-1, 3)
+            return Z @ fc.solve((Zt @ r).ravel()).reshape(-1, 3)
 
         def fine(r):
             z = np.zeros_like(r)
