@@ -109,11 +109,11 @@ SETTINGS = {
     "full": {"hinge_lengths": FIG6_LENGTHS, "hinge_cells": 16, "repeats": 3, "plain_max_iter": 3000,
              "sheet_sizes": (1_000, 10_000, 100_000), "sheet_repeats": 3, "big_repeats": 1,
              "big": 50_000, "hessian_max": 10_000, "fem": True, "gdfe_levels": (4, 8, 16, 32, 64),
-             "gdfe_reference": 128, "fem_levels": tuple(range(len(FEM_FAMILY))),
+             "gdfe_reference": None, "fem_levels": tuple(range(len(FEM_FAMILY))),
              "freeform_sizes": (100_000,), "freeform": FREEFORM, "freeform_big": FREEFORM_BIG},
     "quick": {"hinge_lengths": (1.0,), "hinge_cells": 4, "repeats": 1, "plain_max_iter": 100,
               "sheet_sizes": (64, 144, 256), "sheet_repeats": 1, "big_repeats": 1, "big": 50_000,
-              "hessian_max": 256, "fem": False, "gdfe_levels": (2, 4, 8), "gdfe_reference": 16, "fem_levels": (),
+              "hessian_max": 256, "fem": False, "gdfe_levels": (2, 4, 8), "gdfe_reference": None, "fem_levels": (),
               "freeform_sizes": (256,), "freeform": ("fig08-dome",), "freeform_big": FREEFORM_BIG},
 }
 
@@ -472,9 +472,10 @@ def _gdfe_levels(cfg, L, d, R, progress, desc):
     import gdfe
 
     rows = []
-    for n in _progress(cfg["gdfe_levels"] + (cfg["gdfe_reference"],), desc, progress):
+    extra = (cfg["gdfe_reference"],) if cfg.get("gdfe_reference") else ()
+    for n in _progress(cfg["gdfe_levels"] + extra, desc, progress):
         des = _gdfe_hinge(L, d, n, R)
-        reference = n == cfg["gdfe_reference"]
+        reference = n in extra
         med, times, res = median_time(lambda: gdfe.simulate(des), 1 if reference else cfg["repeats"])
         rows.append({"level": f"{n} cells across the hinge", "n": n, "cell_mm": L / n, "method": res.method,
                      "elements": des.n_cells,
