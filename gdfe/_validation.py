@@ -22,8 +22,13 @@ import numpy as np
 __all__ = [
     "GdfeError", "GdfeTypeError", "GdfeFileNotFoundError",
     "check_number", "check_positive", "check_ratio", "check_poisson", "check_int", "check_bool", "check_choice",
-    "check_array", "check_file", "check_instance", "describe",
+    "check_array", "check_file", "check_instance", "check_keys", "check_length", "read_text", "describe",
+    "LENGTH_RANGE",
 ]
+
+#: Lengths a design may have [mm]: a film between a nanometre and a kilometre. Outside this
+#: range the solver's sums of squared lengths (mm^5 energies) lose their digits or overflow.
+LENGTH_RANGE = (1e-6, 1e6)
 
 
 class GdfeError(ValueError):
@@ -127,6 +132,16 @@ def check_positive(name, value):
                         what="a positive finite number", allow_array=True)
 
 
+def check_length(name, value):
+    """A length of a design [mm]: positive, finite and within :data:`LENGTH_RANGE` (arrays too)."""
+    arr = check_positive(name, value)
+    lo, hi = LENGTH_RANGE
+    bad = (np.asarray(arr) < lo) | (np.asarray(arr) > hi)
+    if np.any(bad):
+        raise GdfeError(f"{name}: expected a length between {lo:g} and {hi:g} mm, got {_first_bad(np.asarray(arr), bad)}")
+    return arr
+
+
 def check_ratio(name, value):
     """A contraction ratio (or array of them): finite and in (0, 1]."""
     return check_number(name, value, minimum=0.0, maximum=1.0, include_minimum=False,
@@ -167,6 +182,49 @@ def check_choice(name, value, options):
         listed = ", ".join(repr(o) for o in options)
         raise GdfeError(f"{name}: expected one of {listed}, got {describe(value)}")
     return value
+
+
+def check_keys(where, mapping, known, what="key"):
+    """Every key of ``mapping`` is one of ``known``; else a :class:`GdfeError` with a "did you mean".
+
+    ``where`` starts the message (a file and table, e.g. ``"d.toml: [hinge]"``); ``what``
+    names the kind of key (``"key"``, ``"section"``); sections are shown in brackets.
+    """
+    import difflib
+
+    known = tuple(known)
+    show = (lambda k: f"[{k}]") if what == "section" else repr
+    for key in mapping:
+        if key not in known:
+            near = difflib.get_close_matches(str(key), [str(k) for k in known], n=1, cutoff=0.6)
+            hint = f" (did you mean {show(near[0])}?)" if near else ""
+            listed = ", ".join(show(k) for k in known) if what == "section" else ", ".join(known)
+            raise GdfeError(f"{where}: unknown {what} {show(key)}{hint}; expected some of {listed}")
+    return mapping
+
+
+def read_text(path, what="text file"):
+    """The text of a UTF-8 file (a byte-order mark dropped); binary or other encodings refused.
+
+    Raises
+    ------
+    GdfeError
+        Naming the file: a binary file (NUL bytes), bytes that are not UTF-8 (with the line),
+        or a file that cannot be read.
+    """
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise GdfeError(f"{path.name}: cannot read the {what}: {exc.strerror or exc}") from None
+    if b"\x00" in data:
+        raise GdfeError(f"{path.name}: not a text file: expected a {what}, got binary data (NUL bytes)")
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        raise GdfeError(f"{path.name}: not a UTF-8 text file: expected a {what}, got byte 0x{data[exc.start]:02x} "
+                        f"at line {line} (save the file as UTF-8)") from None
 
 
 def check_instance(name, value, cls, what=None):

@@ -34,12 +34,17 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import io
+import logging
 import math
 
 import numpy as np
 
 from gdfe import paper
-from gdfe._validation import (GdfeError, check_choice, check_file, check_int, check_positive)
+from gdfe._validation import (LENGTH_RANGE, GdfeError, check_array, check_choice, check_file, check_int, check_number,
+                              check_positive, check_ratio, read_text)
+
+log = logging.getLogger(__name__)
 
 __all__ = [
     "TABLE1",
@@ -68,17 +73,32 @@ DEFAULT_H = paper.H
 
 
 def ratio_from_angle(alpha, L, h=DEFAULT_H):
-    """Eq. 2: contraction ratio of a hinge that folds by ``alpha`` [rad] over width ``L`` [mm]."""
+    """Eq. 2: contraction ratio of a hinge that folds by ``alpha`` [rad] over width ``L`` [mm].
+
+    Raises
+    ------
+    ValueError
+        Where the angle needs a ratio outside (0, 1]: a fold against the coat (alpha < 0) or
+        one the film cannot reach, ``alpha >= L / h`` (it would have to vanish).
+    """
     L = check_positive("L", L)
     h = check_positive("h", h)
-    return 1.0 - np.asarray(alpha, dtype=float) * h / L
+    alpha = check_number("alpha", alpha, allow_array=True)
+    R = 1.0 - alpha * h / L
+    bad = (np.asarray(R) <= 0) | (np.asarray(R) > 1)
+    if np.any(bad):
+        a = np.atleast_1d(alpha)[np.atleast_1d(bad)][0]
+        limit = np.atleast_1d(np.broadcast_to(L / h, np.shape(R)))[np.atleast_1d(bad)][0]
+        raise GdfeError(f"alpha: expected a fold angle in [0, L/h) = [0, {limit:.4g}) rad for a contraction ratio in "
+                        f"(0, 1], got {a:g}")
+    return R
 
 
 def angle_from_ratio(R, L, h=DEFAULT_H):
     """Eq. 2 inverted: fold angle [rad] of a fully contracting hinge, ``(1 - R) L / h``."""
     L = check_positive("L", L)
     h = check_positive("h", h)
-    return (1.0 - np.asarray(R, dtype=float)) * L / h
+    return (1.0 - check_ratio("R", R)) * L / h
 
 
 @dataclasses.dataclass(frozen=True)
@@ -158,6 +178,11 @@ class Calibration:
 
 #: Bootstrap indices drawn at a time by :func:`fit_reading` (bounds its memory: 8 bytes each).
 BOOTSTRAP_CHUNK = 4_000_000
+#: Fewest resamples of a bootstrap interval (0 asks for none): its 2.5 and 97.5 percentiles
+#: need at least this many to lie between resamples rather than on the few extreme ones.
+MIN_BOOT = 100
+#: Most resamples of a bootstrap interval (beyond it the interval changes in digits nobody reads).
+MAX_BOOT = 100_000
 
 #: The readings of Eq. 1 that :func:`fit_reading` fits (see the module docstring).
 READINGS = ("eq1", "eq1-d1", "power")
@@ -256,7 +281,10 @@ class CalibrationFit:
                  f"K      {self.K:.4f}{unit}  (95 % bootstrap CI {self.K_ci[0]:.4f} .. {self.K_ci[1]:.4f})"]
         if self.model == "power":
             lines.append(f"p      {self.p:.4f}  (95 % bootstrap CI {self.p_ci[0]:.4f} .. {self.p_ci[1]:.4f})")
-        lines += [f"r2     {self.r2:.4f}  (about the mean; {self.r2_uncentered:.4f} about zero)",
+        r2 = "undefined" if math.isnan(self.r2) else f"{self.r2:.4f}"
+        r2u = "undefined" if math.isnan(self.r2_uncentered) else f"{self.r2_uncentered:.4f}"
+        lines += [f"r2     {r2}  (about the mean; {r2u} about zero)"
+                  + ("; every angle is the same, so there is no spread to explain" if math.isnan(self.r2) else ""),
                   f"rmse   {self.rmse:.4f} rad", f"n      {self.n}"]
         return "\n".join(lines)
 
@@ -272,10 +300,15 @@ def regressor(model, L, d, h):
 
 
 def fit_quality(y, fitted):
-    """R² about the mean, R² about zero, rmse and residuals of ``fitted`` against ``y``."""
+    """R² about the mean, R² about zero, rmse and residuals of ``fitted`` against ``y``.
+
+    R² about the mean is NaN where every angle is the same (nothing varies to explain), and
+    about zero where every angle is 0.
+    """
     res = y - fitted
     ss = float(res @ res)
-    return (1.0 - ss / float(((y - y.mean()) ** 2).sum()), 1.0 - ss / float(y @ y),
+    ss_mean, ss_zero = float(((y - y.mean()) ** 2).sum()), float(y @ y)
+    return (1.0 - ss / ss_mean if ss_mean > 0 else math.nan, 1.0 - ss / ss_zero if ss_zero > 0 else math.nan,
             math.sqrt(ss / y.size), res)
 
 
@@ -310,7 +343,7 @@ def fit_reading(tests, model="eq1", n_boot=2000, seed=0):
         The tests, or a CSV with columns ``L_mm, d_mm, h_mm, alpha_rad``.
     model : {"eq1", "eq1-d1", "power"}
     n_boot : int
-        Bootstrap resamples (0: no interval).
+        Bootstrap resamples: 0 (no interval) or from :data:`MIN_BOOT` to :data:`MAX_BOOT`.
     seed : int
         Seed of the bootstrap's random generator.
 
@@ -319,7 +352,7 @@ def fit_reading(tests, model="eq1", n_boot=2000, seed=0):
     CalibrationFit
     """
     check_choice("model", model, READINGS)
-    n_boot = check_int("n_boot", n_boot, minimum=0)
+    n_boot = check_boot("n_boot", n_boot)
     if not isinstance(tests, FoldingTests):
         tests = load_folding_tests(tests)
     L, d, h, y = tests.L, tests.d, tests.h, tests.alpha
@@ -327,6 +360,9 @@ def fit_reading(tests, model="eq1", n_boot=2000, seed=0):
     need = 3 if model == "power" else 2
     if n < need:
         raise GdfeError(f"tests: expected at least {need} folding tests to fit {model}, got {n}")
+    if model == "power" and np.unique(h / d).size < 2:
+        raise GdfeError("tests: expected at least two values of h/d to fit the exponent p of the power reading, "
+                        f"got h/d = {float((h / d)[0]):.4g} in every test")
     rng = np.random.default_rng(seed)
     # resamples drawn in chunks of at most BOOTSTRAP_CHUNK indices: memory stays bounded for
     # any number of tests (one chunk, and the same numbers, for small data sets)
@@ -353,8 +389,20 @@ def fit_reading(tests, model="eq1", n_boot=2000, seed=0):
         K_ci = tuple(np.percentile(Kb, [2.5, 97.5]).tolist()) if n_boot else (K, K)
         p_ci = (p, p)
     r2, r2u, rmse, res = fit_quality(y, fitted)
+    if n_boot and not K_ci[0] <= K <= K_ci[1]:  # possible for a biased, skewed bootstrap of few tests
+        log.warning("the 95 %% bootstrap interval of K (%.4g .. %.4g) excludes the fitted K = %.4g: with %d tests "
+                    "the bootstrap is unreliable", K_ci[0], K_ci[1], K, n)
     return CalibrationFit(model=model, K=float(K), p=float(p), r2=r2, r2_uncentered=r2u, rmse=rmse, n=int(n),
                           K_ci=K_ci, p_ci=p_ci, residuals=res)
+
+
+def check_boot(name, n_boot):
+    """A number of bootstrap resamples: 0 (no interval) or from :data:`MIN_BOOT` to :data:`MAX_BOOT`."""
+    n_boot = check_int(name, n_boot, minimum=0, maximum=MAX_BOOT)
+    if 0 < n_boot < MIN_BOOT:
+        raise GdfeError(f"{name}: expected 0 (no interval) or at least {MIN_BOOT} resamples for a 95 % interval, "
+                        f"got {n_boot}")
+    return n_boot
 
 
 def held_out_rmse(tests, model="eq1"):
@@ -399,11 +447,29 @@ class FoldingTests:
     alpha: np.ndarray
     extra: dict = dataclasses.field(default_factory=dict)
 
+    def __post_init__(self):
+        arrays = {}
+        for name in ("L", "d", "h", "alpha"):
+            a = check_array(name, np.atleast_1d(getattr(self, name)), ndim=1)
+            if name != "alpha":
+                check_positive(name, a)
+            arrays[name] = a
+        sizes = {a.size for a in arrays.values()}
+        if len(sizes) != 1:
+            raise GdfeError(f"L, d, h, alpha: expected arrays of one length, got lengths "
+                            f"{', '.join(str(a.size) for a in arrays.values())}")
+        for name, a in arrays.items():
+            object.__setattr__(self, name, a)
+
     def __len__(self):
         return int(self.L.size)
 
 
 _COLUMNS = ("L_mm", "d_mm", "h_mm", "alpha_rad")
+#: Largest fold angle a folding test may report [rad]: three turns (larger values are degrees).
+MAX_ANGLE = 6 * math.pi
+#: Errors a message lists before it says how many more there are.
+MAX_ERRORS = 5
 
 
 def load_folding_tests(path, default_h=None):
@@ -419,8 +485,9 @@ def load_folding_tests(path, default_h=None):
         or non-positive value, or the missing columns.
     """
     path = check_file("folding tests", path, what="CSV file")
-    with path.open(newline="") as f:
-        reader = csv.DictReader(f)
+    text = read_text(path, "CSV file of folding tests")
+    try:
+        reader = csv.DictReader(io.StringIO(text, newline=""))
         header = [c.strip() for c in (reader.fieldnames or [])]
         reader.fieldnames = header
         required = [c for c in _COLUMNS if not (c == "h_mm" and default_h is not None)]
@@ -430,13 +497,22 @@ def load_folding_tests(path, default_h=None):
                 f"{path.name}: missing column(s) {', '.join(missing)}; expected {', '.join(_COLUMNS)}, "
                 f"got {', '.join(header) or 'no header'}"
             )
-        rows = list(reader)
-    if not rows:
+        twice = sorted({c for c in header if header.count(c) > 1})
+        if twice:
+            raise GdfeError(f"{path.name}: expected each column once, got {', '.join(twice)} more than once")
+        numbered = [(reader.line_num, row) for row in reader]  # the row's line: blank lines are skipped
+    except csv.Error as exc:
+        raise GdfeError(f"{path.name}: line {reader.line_num}: not a readable CSV row ({exc})") from None
+    for i, row in numbered:
+        if any((v or "").strip() for v in row.get(None, ())):  # more fields than the header names
+            raise GdfeError(f"{path.name}: row {i}: expected {len(header)} fields (the header's), got "
+                            f"{len(header) + len(row[None])}")
+    if not numbered:
         raise GdfeError(f"{path.name}: no data rows")
     cols = {c: [] for c in _COLUMNS}
     extra = {c: [] for c in header if c not in _COLUMNS}
     errors = []
-    for i, row in enumerate(rows, start=2):
+    for i, row in numbered:
         for c in _COLUMNS:
             raw = (row.get(c) or "").strip()
             if c == "h_mm" and raw == "" and default_h is not None:
@@ -452,11 +528,18 @@ def load_folding_tests(path, default_h=None):
                 errors.append(f"row {i}, column {c}: expected a finite number, got {raw!r}")
             elif c != "alpha_rad" and v <= 0:
                 errors.append(f"row {i}, column {c}: expected a positive length in mm, got {v:g}")
+            elif c != "alpha_rad" and not LENGTH_RANGE[0] <= v <= LENGTH_RANGE[1]:
+                errors.append(f"row {i}, column {c}: expected a length between {LENGTH_RANGE[0]:g} and "
+                              f"{LENGTH_RANGE[1]:g} mm, got {v:g}")
+            elif c == "alpha_rad" and abs(v) > MAX_ANGLE:
+                errors.append(f"row {i}, column {c}: expected a fold angle in radians of at most {MAX_ANGLE:.4g} "
+                              f"(three turns), got {v:g} (degrees?)")
             cols[c].append(v)
         for c in extra:
             extra[c].append((row.get(c) or "").strip())
     if errors:
-        raise GdfeError(f"{path.name}: " + "; ".join(errors))
+        shown = errors[:MAX_ERRORS] + ([f"and {len(errors) - MAX_ERRORS} more"] if len(errors) > MAX_ERRORS else [])
+        raise GdfeError(f"{path.name}: " + "; ".join(shown))
     return FoldingTests(
         L=np.array(cols["L_mm"]), d=np.array(cols["d_mm"]), h=np.array(cols["h_mm"]),
         alpha=np.array(cols["alpha_rad"]), extra={k: np.array(v) for k, v in extra.items()},

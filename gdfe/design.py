@@ -13,20 +13,36 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-from pathlib import Path
 
 import numpy as np
 
-from gdfe._validation import (GdfeError, GdfeFileNotFoundError, check_choice, check_number,
-                              check_positive, check_ratio)
+from gdfe._images import read_mask
+from gdfe._validation import (GdfeError, GdfeTypeError, check_choice, check_file, check_int, check_keys,
+                              check_positive, check_length, check_number, check_ratio, describe,
+                              read_text)
 from gdfe.calibration import DEFAULT_H, PAPER_K
 from gdfe.material import LAYOUT_CHARS, Material
-from gdfe.mesh import HexMesh, sheet_mesh
+from gdfe.mesh import DEFAULT_NZ, HexMesh, sheet_mesh
 from gdfe.model import as_model, paper_model
+from gdfe.resources import check_design_cells
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Material", "Design", "grid_design", "hinge", "from_masks", "from_rows", "load_design"]
+__all__ = ["Material", "Design", "grid_design", "hinge", "from_masks", "from_rows", "load_design", "DESIGN_KEYS"]
+
+#: The sections of a design file and the keys of each (:func:`load_design`).
+DESIGN_KEYS = {
+    "film": ("h", "R", "d", "K", "nz", "isotropy", "model"),
+    "hinge": ("length", "width", "panel_length", "cell_size", "face"),
+    "layout": ("pixel", "rows"),
+    "masks": ("pixel", "top", "bottom", "film", "d_top", "d_bottom"),
+    "svg": ("file", "pixel", "by"),
+    "fold": ("file", "pixel", "hinge_width", "scale"),
+    "process": None,  # the part's process variables: any names
+    "simulate": ("steps", "tol", "max_iter", "method", "contact", "on_drift"),
+}
+#: The sections of which a design file has exactly one: how its film is laid out.
+DESIGN_KINDS = ("hinge", "layout", "masks", "svg", "fold")
 
 
 @dataclasses.dataclass
@@ -83,14 +99,18 @@ class Design:
             raise GdfeError(f"material: expected codes {[int(c) for c in Material]}, "
                              f"got {sorted(set(self.material.tolist()))}")
         check_ratio("R", self.R)
-        self.h = check_positive("h", self.h)
+        self.h = check_length("h", self.h)
         self.isotropy = check_number("isotropy", self.isotropy, minimum=0.0, maximum=1.0,
                                      what="a number in [0, 1]")
         if self.d is not None:
+            if isinstance(self.d, (str, bytes, bool, np.bool_)):
+                raise GdfeTypeError(f"d: expected passive thicknesses in mm, got {describe(self.d)}")
             self.d = np.broadcast_to(np.asarray(self.d, dtype=float), (m,)).copy()
             known = self.d[np.isfinite(self.d)]
             if np.any(known <= 0):
                 raise GdfeError(f"d: expected positive passive thicknesses in mm, got {known[known <= 0][0]:g}")
+            if np.isinf(self.d).any():
+                raise GdfeError("d: expected finite passive thicknesses in mm (NaN where none), got inf")
         if self.contraction is not None:
             c = np.asarray(self.contraction, dtype=float)
             if c.shape != (m, 2) or not np.isfinite(c).all() or np.any(c < 0) or np.any(c >= 1):
@@ -149,7 +169,7 @@ class Design:
         return out
 
 
-def grid_design(material2d, R=None, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0, film=None,
+def grid_design(material2d, R=None, h=DEFAULT_H, pixel=0.1, nz=DEFAULT_NZ, isotropy=1.0, film=None,
                 regions2d=None, meta=None, d=None, model=None, process=None):
     """A design from an in-plane grid of materials.
 
@@ -168,7 +188,7 @@ def grid_design(material2d, R=None, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0, 
     pixel : float or (2,) float [mm]
         In-plane cell size (dx, dy).
     nz : int
-        Cell layers through the thickness.
+        Cell layers through the thickness (default :data:`gdfe.mesh.DEFAULT_NZ`, 1).
     isotropy : float
         See :class:`Design`.
     film : (nx, ny) bool array, optional
@@ -187,7 +207,13 @@ def grid_design(material2d, R=None, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0, 
     material2d = np.asarray(material2d)
     if material2d.ndim != 2:
         raise GdfeError(f"material2d: expected a 2-D grid, got shape {material2d.shape}")
+    pixel = check_length("pixel", pixel)
+    if np.ndim(pixel) > 1 or np.size(pixel) not in (1, 2):
+        raise GdfeError(f"pixel: expected a cell size or a pair (dx, dy) in mm, got {describe(pixel)}")
     dx, dy = np.broadcast_to(np.asarray(pixel, float), (2,))
+    h = check_length("h", h)
+    isotropy = check_number("isotropy", isotropy, minimum=0.0, maximum=1.0, what="a number in [0, 1]")
+    nz = check_int("nz", nz)
     if isotropy > 0 and max(dx, dy) > 1.5 * min(dx, dy):
         # measured by studies/fig07_crease_fold.py (fine tube meshes): a tube's fold per hinge
         # falls from 0.755 to 0.255 rad as the cells' aspect goes from 1 to 5.4 (isotropic
@@ -226,7 +252,7 @@ def grid_design(material2d, R=None, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0, 
 
 
 def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_length=1.0,
-          cell_size=None, nz=1, isotropy=1.0, face="top", model=None, process=None):
+          cell_size=None, nz=DEFAULT_NZ, isotropy=1.0, face="top", model=None, process=None):
     """The paper's folding specimen: two rigid panels joined by a contracting hinge.
 
     The strip runs along x: ``panel_a`` (x < 0), the hinge of width ``length``
@@ -258,7 +284,7 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
         In-plane cell size; default ``min(length / 16, width / 2)``: 16 cells across the
         hinge, and at least two across the strip with an aspect ratio of at most 1.5.
     nz : int
-        Cell layers through the thickness.
+        Cell layers through the thickness (default :data:`gdfe.mesh.DEFAULT_NZ`, 1).
     isotropy : float
         1: in-plane isotropic shrink (default); 0: shrink along x only.
     face : {"top", "bottom"}
@@ -268,15 +294,16 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
     process : dict, optional
         The part's process variables, for the model's process mechanisms.
     """
-    length = check_positive("length", length)
-    width = check_positive("width", width)
-    panel_length = check_positive("panel_length", panel_length)
-    h = check_positive("h", h)
+    length = check_length("length", length)
+    width = check_length("width", width)
+    panel_length = check_length("panel_length", panel_length)
+    h = check_length("h", h)
+    nz = check_int("nz", nz)
     model = as_model(model)
     if R is None:
         if d is None:
             raise GdfeError("hinge: give the passive thickness d (mm) or the contraction ratio R")
-        d = check_positive("d", d)
+        d = check_length("d", d)
         model = model or paper_model(K)
     else:
         if model is not None:
@@ -285,13 +312,14 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
     check_choice("face", face, ("top", "bottom"))
     if cell_size is None:
         cell_size = min(length / 16.0, width / 2.0)
-    cell_size = check_positive("cell_size", cell_size)
+    cell_size = check_length("cell_size", cell_size)
     nh = max(1, int(round(length / cell_size)))
     dx = length / nh
     npanel = max(1, int(round(panel_length / dx)))
     ny = max(2, int(round(width / cell_size)))
     dy = width / ny
     nx = 2 * npanel + nh
+    check_design_cells("hinge", nx * ny * nz)  # before any array of that size is made
     mat = np.full((nx, ny), int(Material.RIGID))
     code = Material.CONTRACT_TOP if face == "top" else Material.CONTRACT_BOTTOM
     mat[npanel:npanel + nh] = int(code)
@@ -323,7 +351,8 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
     return des
 
 
-def from_rows(rows, R=None, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0, d=None, model=None, process=None):
+def from_rows(rows, R=None, h=DEFAULT_H, pixel=0.1, nz=DEFAULT_NZ, isotropy=1.0, d=None, model=None,
+              process=None):
     """A design from a text layout, one string per row of cells, first row at the largest y.
 
     Characters: ``R`` rigid, ``T`` contracts on top (top face free), ``B`` contracts on
@@ -331,8 +360,12 @@ def from_rows(rows, R=None, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0, d=None, 
     from the deformation ``model`` (default the paper's Eq. 3) at the passive thickness ``d``
     [mm] (see :func:`grid_design`).
     """
-    if isinstance(rows, str) or not rows:
-        raise GdfeError("rows: expected a non-empty list of strings")
+    if isinstance(rows, (str, bytes)) or not isinstance(rows, (list, tuple, np.ndarray)) or len(rows) == 0:
+        raise GdfeError(f"rows: expected a non-empty list of strings, got {describe(rows)}")
+    rows = list(rows)
+    for k, r in enumerate(rows):
+        if not isinstance(r, str) or not r:
+            raise GdfeError(f"rows[{k}]: expected a non-empty list of strings, got {describe(r)}")
     widths = {len(r) for r in rows}
     if len(widths) != 1:
         raise GdfeError(f"rows: all rows must have the same length, got lengths {sorted(widths)}")
@@ -344,7 +377,7 @@ def from_rows(rows, R=None, h=DEFAULT_H, pixel=0.1, nz=2, isotropy=1.0, d=None, 
     mat = np.zeros(grid.shape, int)
     for ch, code in LAYOUT_CHARS.items():
         mat[grid == ch] = int(code)
-    meta = {"kind": "layout", "d_mm": None if d is None else float(check_positive("d", d))}
+    meta = {"kind": "layout", "d_mm": None if d is None else float(check_length("d", d))}
     return grid_design(mat, R, h=h, pixel=pixel, nz=nz, isotropy=isotropy, film=film, meta=meta,
                        d=_one_side_d(mat, d, d, d), model=model, process=process)
 
@@ -360,39 +393,17 @@ def _one_side_d(mat, d, d_top=None, d_bottom=None):
                     np.where(mat == Material.CONTRACT_BOTTOM, nan if d_top is None else d_top, nan))
 
 
-def _read_mask(name, value, shape=None):
-    """A boolean mask from an array or an image file (dark or opaque pixels = True)."""
-    if isinstance(value, (str, Path)):
-        path = Path(value)
-        if not path.is_file():
-            raise GdfeFileNotFoundError(f"{name}: mask image not found: {path}")
-        from PIL import Image
-
-        img = Image.open(path)
-        if img.mode in ("RGBA", "LA") or (img.mode == "P" and "transparency" in img.info):
-            rgba = np.asarray(img.convert("RGBA"), float)
-            arr = (rgba[..., 3] > 127) & (rgba[..., :3].mean(-1) < 128)
-        else:
-            arr = np.asarray(img.convert("L"), float) < 128
-        arr = arr[::-1].T  # image row 0 is the top (largest y); grid is (x, y)
-    else:
-        arr = np.asarray(value, bool)
-    if arr.ndim != 2:
-        raise GdfeError(f"{name}: expected a 2-D mask, got shape {arr.shape}")
-    if shape is not None and arr.shape != shape:
-        raise GdfeError(f"{name}: expected a mask of shape {shape} (like 'top'), got {arr.shape}")
-    return arr
-
-
-def from_masks(top, bottom, pixel, R=None, h=DEFAULT_H, nz=1, isotropy=1.0, film=None, d=None,
+def from_masks(top, bottom, pixel, R=None, h=DEFAULT_H, nz=DEFAULT_NZ, isotropy=1.0, film=None, d=None,
                d_top=None, d_bottom=None, model=None, process=None):
     """A design from masks of the passive material printed on the top and bottom faces.
 
     Parameters
     ----------
-    top, bottom : (nx, ny) bool array or path of an image
-        True (for images: dark pixels, or opaque dark pixels) where passive material is
-        printed on that face. Images are read with row 0 at the largest y.
+    top, bottom : (nx, ny) bool array, array of pixels, or path of an image
+        Where passive material is printed on that face: True in a boolean array; dark (and
+        opaque) pixels in an image or an array of pixel values (``uint8``, ``uint16``, floats
+        in [0, 1]), of any bit depth and mode alike (:mod:`gdfe._images`). Images are read with
+        row 0 at the largest y; arrays are indexed ``[i (x), j (y)]``.
     pixel : float [mm]
         Printer pixel size: the in-plane cell size.
     R : float, optional
@@ -406,20 +417,23 @@ def from_masks(top, bottom, pixel, R=None, h=DEFAULT_H, nz=1, isotropy=1.0, film
     model : DeformationModel or path of a model file, optional
         The deformation model (default: the paper's Eq. 3).
     """
-    pixel = check_positive("pixel", pixel)
-    top = _read_mask("top", top)
-    bottom = _read_mask("bottom", bottom, top.shape)
-    keep = None if film is None else _read_mask("film", film, top.shape)
+    pixel = check_length("pixel", pixel)
+    top = read_mask("top", top)
+    bottom = read_mask("bottom", bottom, top.shape)
+    keep = None if film is None else read_mask("film", film, top.shape)
     mat = np.where(top & bottom, Material.RIGID,
                    np.where(bottom, Material.CONTRACT_TOP,
                             np.where(top, Material.CONTRACT_BOTTOM, Material.FREE_SHRINK))).astype(int)
     for name, value in (("d", d), ("d_top", d_top), ("d_bottom", d_bottom)):
         if value is not None:
-            check_positive(name, value)
+            check_length(name, value)
     meta = {"kind": "masks", "pixel_mm": pixel}
     given = [v for v in (d, d_top, d_bottom) if v is not None]
     if given:
         meta["d_mm"] = float(given[0])
+    for name, value in (("d_top_mm", d_top), ("d_bottom_mm", d_bottom)):
+        if value is not None:
+            meta[name] = float(value)
     return grid_design(mat, R, h=h, pixel=pixel, nz=nz, isotropy=isotropy, film=keep, meta=meta,
                        d=_one_side_d(mat, d, d_top, d_bottom), model=model, process=process)
 
@@ -442,8 +456,13 @@ def load_design(path, model=None, process=None):
 
     An optional ``[process]`` table gives the part's process variables (``T_C = 150``,
     ``lot = "B"``) to a model with process mechanisms. An optional ``[simulate]`` table is
-    returned as ``options`` (``steps``, ``tol``,
-    ``max_iter``, ``method``, ``contact`` = ``"auto"``, ``"on"`` or ``"off"``) for :func:`gdfe.simulate`.
+    returned as ``options`` (``steps``, ``tol``, ``max_iter``, ``method``, ``contact`` =
+    ``"auto"``, ``"on"`` or ``"off"``, ``on_drift``) for :func:`gdfe.simulate`.
+
+    ``nz`` defaults to :data:`gdfe.mesh.DEFAULT_NZ` (1) for every kind of design. Every section and
+    key is checked (:data:`DESIGN_KEYS`): an unknown one is an error with a "did you mean", a
+    string or a boolean where a number belongs is an error, and each message names the file,
+    the section and the key.
 
     Parameters
     ----------
@@ -458,86 +477,145 @@ def load_design(path, model=None, process=None):
         import tomllib
     except ModuleNotFoundError:  # Python < 3.11
         import tomli as tomllib
-    path = Path(path)
-    if not path.is_file():
-        raise GdfeFileNotFoundError(f"design file not found: {path}")
+    path = check_file("design", path, what="design file")
     if path.suffix.lower() in (".svg", ".fold"):  # a drawing alone (gdfe.fabrication.drawings)
         from gdfe.fabrication.drawings import load_drawing
 
         return load_drawing(path, from_masks, model=model)
+    name = path.name
     try:
-        doc = tomllib.loads(path.read_text())
+        doc = tomllib.loads(read_text(path, "design file (TOML)"))
     except tomllib.TOMLDecodeError as exc:
-        raise GdfeError(f"{path.name}: not valid TOML: {exc}") from None
+        raise GdfeError(f"{name}: not valid TOML: {exc}") from None
+    _check_sections(name, doc)
     proc = doc.get("process", {})
-    if not isinstance(proc, dict) or not all(isinstance(v, (int, float, str)) and not isinstance(v, bool)
-                                             for v in proc.values()):
-        raise GdfeError(f"{path.name}: [process]: expected names with numbers or text labels, got {proc!r}")
+    for k, v in proc.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float, str)) or (isinstance(v, float) and not np.isfinite(v)):
+            raise GdfeError(f"{name}: [process] {k}: expected a finite number or a text label, got {describe(v)}")
     proc = {**proc, **(process or {})}
-    film = doc.get("film")
-    if not isinstance(film, dict):
-        raise GdfeError(f"{path.name}: missing [film] table (h, and R or d)")
-    known = {"h", "R", "d", "K", "nz", "isotropy", "model"}
-    unknown = set(film) - known
-    if unknown:
-        raise GdfeError(f"{path.name}: [film] has unknown key(s) {sorted(unknown)}; expected {sorted(known)}")
-    h = film.get("h", DEFAULT_H)
-    R = film.get("R")
-    d = film.get("d")
+    if "film" not in doc:
+        raise GdfeError(f"{name}: missing [film] table (h, and R or d)")
+    film = doc["film"]
+    where = f"{name}: [film]"
+    h = _entry(f"{where} h", film.get("h", DEFAULT_H), check_length)
+    R = None if "R" not in film else _entry(f"{where} R", film["R"], lambda n, v: check_number(
+        n, v, minimum=0.0, maximum=1.0, include_minimum=False, what="a contraction ratio in (0, 1]"))
+    d = None if "d" not in film else _entry(f"{where} d", film["d"], check_length)
+    nz = check_int(f"{where} nz", film.get("nz", DEFAULT_NZ))
+    iso = _entry(f"{where} isotropy", film.get("isotropy", 1.0), lambda n, v: check_number(
+        n, v, minimum=0.0, maximum=1.0, what="a number in [0, 1]"))
     if model is not None or "model" in film:
         if R is not None:
-            raise GdfeError(f"{path.name}: [film] gives R and a deformation model; expected one of them")
+            raise GdfeError(f"{name}: [film] gives R and a deformation model; expected one of them")
         if "K" in film:
-            raise GdfeError(f"{path.name}: [film] K is the paper's Eq. 3 coefficient; a deformation model "
+            raise GdfeError(f"{name}: [film] K is the paper's Eq. 3 coefficient; a deformation model "
                             f"has its own parameters: remove K")
         if model is None:
             spec_model = film["model"]
-            if not isinstance(spec_model, str):
-                raise GdfeError(f"{path.name}: [film] model: expected the path of a model file, "
-                                f"got {spec_model!r}")
+            if not isinstance(spec_model, str) or not spec_model:
+                raise GdfeError(f"{name}: [film] model: expected the path of a model file, got {describe(spec_model)}")
             try:
                 model = as_model(spec_model, base=path.parent)
             except GdfeError as exc:
-                raise GdfeError(f"{path.name}: [film] model: {exc}") from None
+                raise type(exc)(f"{name}: [film] model: {exc}") from None
         model = as_model(model)
     elif R is None:
-        model = paper_model(film.get("K", PAPER_K))
-    nz = film.get("nz", 2)
-    iso = film.get("isotropy", 1.0)
-    kinds = [k for k in ("hinge", "layout", "masks", "svg", "fold") if k in doc]
+        model = paper_model(_entry(f"{where} K", film.get("K", PAPER_K), check_positive))
+    kinds = [k for k in DESIGN_KINDS if k in doc]
     if len(kinds) != 1:
-        raise GdfeError(f"{path.name}: expected exactly one of [hinge], [layout], [masks], [svg], [fold]; "
-                        f"got {kinds or 'none'}")
+        raise GdfeError(f"{name}: expected exactly one of [hinge], [layout], [masks], [svg], [fold]; "
+                        f"got {', '.join(f'[{k}]' for k in kinds) if kinds else 'none'}")
     kind = kinds[0]
     spec = doc[kind]
     if R is None and d is None and not (kind == "masks" and ("d_top" in spec or "d_bottom" in spec)):
-        raise GdfeError(f"{path.name}: [film] needs R (contraction ratio) or d (passive thickness, mm)")
+        raise GdfeError(f"{name}: [film] needs R (contraction ratio) or d (passive thickness, mm)")
+    for key in DESIGN_KEYS[kind]:
+        if key not in spec and key in _REQUIRED.get(kind, ()):
+            raise GdfeError(f"{name}: [{kind}] is missing {key!r}")
+    where = f"{name}: [{kind}]"
     try:
         if kind == "hinge":
-            des = hinge(spec["length"], d=d, R=R, h=h, nz=nz, isotropy=iso, model=model, process=proc,
-                        **{k: spec[k] for k in ("width", "panel_length", "cell_size", "face") if k in spec})
+            extra = {k: _entry(f"{where} {k}", spec[k], check_length)
+                     for k in ("width", "panel_length", "cell_size") if k in spec}
+            if "face" in spec:
+                extra["face"] = check_choice(f"{where} face", spec["face"], ("top", "bottom"))
+            des = hinge(_entry(f"{where} length", spec["length"], check_length), d=d, R=R, h=h, nz=nz, isotropy=iso,
+                        model=model, process=proc, **extra)
         elif kind == "layout":
-            des = from_rows(spec["rows"], R, h=h, pixel=spec["pixel"], nz=nz, isotropy=iso, d=d, model=model,
-                            process=proc)
+            pixel = spec["pixel"]
+            pixel = (_entry(f"{where} pixel", pixel, check_length) if not isinstance(pixel, list) else
+                     _pair(f"{where} pixel", pixel))
+            rows = spec["rows"]
+            if not isinstance(rows, list) or not rows or not all(isinstance(r, str) and r for r in rows):
+                raise GdfeError(f"{where} rows: expected a list of strings of R T B S . (first row on top), "
+                                f"got {describe(rows)}")
+            des = from_rows(rows, R, h=h, pixel=pixel, nz=nz, isotropy=iso, d=d, model=model, process=proc)
         elif kind in ("svg", "fold"):  # a drawing with this file's film (gdfe.fabrication.drawings)
             from gdfe.fabrication.drawings import drawing_design
 
             des = drawing_design(kind, spec, path, lambda top, bottom, pixel, mask: from_masks(
-                top, bottom, pixel, R, h=h, nz=film.get("nz", 1), isotropy=iso, film=mask, d=d, model=model,
-                process=proc))
+                top, bottom, pixel, R, h=h, nz=nz, isotropy=iso, film=mask, d=d, model=model, process=proc))
         else:
             base = path.parent
-            film_mask = base / spec["film"] if "film" in spec else None
-            des = from_masks(base / spec["top"], base / spec["bottom"], spec["pixel"], R, h=h,
-                             nz=film.get("nz", 1), isotropy=iso, film=film_mask, d=d,
-                             d_top=spec.get("d_top"), d_bottom=spec.get("d_bottom"), model=model, process=proc)
-    except KeyError as exc:
-        raise GdfeError(f"{path.name}: [{kind}] is missing {exc.args[0]!r}") from None
+            files = {}
+            for key in ("top", "bottom", "film"):
+                if key in spec:
+                    if not isinstance(spec[key], str) or not spec[key]:
+                        raise GdfeError(f"{where} {key}: expected the path of a mask image, got {describe(spec[key])}")
+                    files[key] = base / spec[key]
+            thick = {k: _entry(f"{where} {k}", spec[k], check_length) for k in ("d_top", "d_bottom") if k in spec}
+            des = from_masks(files["top"], files["bottom"], _entry(f"{where} pixel", spec["pixel"], check_length), R,
+                             h=h, nz=nz, isotropy=iso, film=files.get("film"), d=d, model=model, process=proc, **thick)
+    except GdfeError as exc:
+        if str(exc).startswith(name):
+            raise
+        raise type(exc)(f"{name}: {exc}") from None
     des.meta.setdefault("source", str(path))
+    des.meta.setdefault("nz", nz)
     options = dict(doc.get("simulate", {}))
-    unknown = set(options) - {"steps", "tol", "max_iter", "method", "contact"}
-    if unknown:
-        raise GdfeError(f"{path.name}: [simulate] has unknown key(s) {sorted(unknown)}")
-    if "contact" in options:  # the choices of gdfe.simulate's contact=
-        check_choice(f"{path.name}: [simulate] contact", options["contact"], ("auto", "on", "off"))
+    where = f"{name}: [simulate]"
+    for key, check in (("steps", check_int), ("max_iter", check_int)):
+        if key in options:
+            options[key] = check(f"{where} {key}", options[key])
+    if "tol" in options:
+        options["tol"] = _entry(f"{where} tol", options["tol"], check_positive)
+    for key, choices in (("contact", ("auto", "on", "off")), ("on_drift", ("warn", "stop"))):
+        if key in options:  # the choices of gdfe.simulate's contact= and on_drift=
+            check_choice(f"{where} {key}", options[key], choices)
+    if "method" in options and not isinstance(options["method"], str):
+        raise GdfeTypeError(f"{where} method: expected the name of a method, got {describe(options['method'])}")
     return des, options
+
+
+#: Keys a design file's sections must have.
+_REQUIRED = {"hinge": ("length",), "layout": ("pixel", "rows"), "masks": ("pixel", "top", "bottom")}
+
+
+def _check_sections(name, doc):
+    """Every section of a design file known, a table, and its keys known (with a "did you mean")."""
+    for key, value in doc.items():
+        if not isinstance(value, dict):
+            owner = [s for s, keys in DESIGN_KEYS.items() if keys and key in keys]
+            hint = f": put it under [{owner[0]}]" if owner else ""
+            if key in DESIGN_KEYS:
+                raise GdfeError(f"{name}: [{key}]: expected a table, got {key} = {describe(value)}")
+            raise GdfeError(f"{name}: {key} = {describe(value)} stands outside any section{hint}; expected sections "
+                            f"{', '.join(f'[{s}]' for s in DESIGN_KEYS)}")
+    check_keys(name, doc, DESIGN_KEYS, what="section")
+    for key, value in doc.items():
+        if DESIGN_KEYS[key] is not None:
+            check_keys(f"{name}: [{key}]", value, DESIGN_KEYS[key])
+
+
+def _entry(where, value, check):
+    """``check(where, value)`` for one value of a design file: a number, not a list or a table."""
+    if isinstance(value, (list, dict)):
+        raise GdfeTypeError(f"{where}: expected a number, got {describe(value)}")
+    return check(where, value)
+
+
+def _pair(where, value):
+    """A ``[dx, dy]`` pair of lengths."""
+    if len(value) != 2:
+        raise GdfeError(f"{where}: expected a length or a pair [dx, dy] in mm, got {describe(value)}")
+    return tuple(_entry(f"{where}[{k}]", v, check_length) for k, v in enumerate(value))

@@ -19,8 +19,8 @@ import numpy as np
 from gdfe._validation import GdfeTypeError
 
 __all__ = ["write_vtu", "write_series", "render_png", "write_json", "write_text", "surface_faces", "boundary_quads",
-           "atomic_path",
-           "json_default", "save_figure"]
+           "atomic_path", "json_default", "save_figure", "OutputFolder", "MATERIAL_CODES", "MANIFEST", "MARKER",
+           "folder_state"]
 
 log = logging.getLogger(__name__)
 
@@ -46,6 +46,21 @@ def atomic_path(path):
             os.remove(tmp)
 
 
+#: The ``material`` codes of the VTU files and what each means (written into every VTU as field data).
+MATERIAL_CODES = {0: "rigid (both faces coated)", 1: "contract_top (bottom face coated, top free)",
+                  2: "contract_bottom (top face coated, bottom free)", 3: "free_shrink (no coat)"}
+
+
+def _material_legend():
+    """The VTU ``FieldData`` block naming the ``material`` codes (meshio writes no field data to VTU)."""
+    from gdfe.material import Material
+
+    arrays = "".join(f'<DataArray type="Int32" Name="material_{m.name.lower()}" NumberOfTuples="1" '
+                     f'format="ascii">{int(m)}</DataArray>\n' for m in Material)
+    words = "; ".join(f"{k} = {v}" for k, v in MATERIAL_CODES.items())
+    return f"<!--cell data 'material': {words}-->\n<FieldData>\n{arrays}</FieldData>\n"
+
+
 def _cell_data(design):
     return {"material": design.material.astype(np.int32), "R": design.R.astype(float),
             "layer": design.mesh.cell_k.astype(np.int32)}
@@ -60,14 +75,18 @@ def write_vtu(path, points, design, point_data=None):
                        point_data=point_data or {})
     with atomic_path(path) as tmp:
         meshio.write(tmp, mesh, file_format="vtu")
+        text = tmp.read_text()
+        tmp.write_text(text.replace("<UnstructuredGrid>\n", "<UnstructuredGrid>\n" + _material_legend(), 1))
     return Path(path)
 
 
-def write_series(result, out_dir, name="shape"):
+def write_series(result, out_dir, name="shape", progress=False):
     """Write every frame of a result as ``NAME_###.vtu`` plus ``NAME.pvd``, which ParaView plays.
 
     The time of each frame is its activation, 0 (flat print) to 1 (fully contracted).
-    Point data ``displacement`` [mm] is relative to the flat print.
+    Point data ``displacement`` [mm] is relative to the flat print; cell data ``material``
+    (codes named in :data:`MATERIAL_CODES` and in each file's field data), ``R`` and ``layer``.
+    ``progress``: a tqdm bar over the frames (True; None: only on a terminal).
 
     Returns
     -------
@@ -77,11 +96,18 @@ def write_series(result, out_dir, name="shape"):
     out_dir = Path(out_dir)
     design = result.design
     entries = []
-    for k, (pts, act) in enumerate(zip(result.frames, result.activation)):
+    frames = list(zip(result.frames, result.activation))
+    if progress is not False and len(frames) > 1:
+        from tqdm.auto import tqdm
+
+        frames = tqdm(frames, desc=f"writing {name}", unit="frame", disable=None if progress is None else False,
+                      leave=False)
+    for k, (pts, act) in enumerate(frames):
         fname = f"{name}_{k:03d}.vtu"
         write_vtu(out_dir / fname, pts, design, {"displacement": pts - design.mesh.points})
         entries.append(f'    <DataSet timestep="{act:.6g}" group="" part="0" file="{fname}"/>')
-    pvd = "\n".join(['<?xml version="1.0"?>',
+    words = "; ".join(f"{k} = {v}" for k, v in MATERIAL_CODES.items())
+    pvd = "\n".join(['<?xml version="1.0"?>', f"<!--cell data 'material': {words}-->",
                      '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
                      "  <Collection>", *entries, "  </Collection>", "</VTKFile>", ""])
     return write_text(out_dir / f"{name}.pvd", pvd)
@@ -233,3 +259,175 @@ def json_default(o):
 def write_json(path, obj):
     """Write ``obj`` as indented JSON (numpy scalars and arrays converted)."""
     return write_text(path, json.dumps(obj, indent=2, default=json_default) + "\n")
+
+
+#: The file an :class:`OutputFolder` writes last, listing every file of a complete output.
+MANIFEST = "gdfe-manifest.json"
+#: The file an :class:`OutputFolder` writes first and removes when complete: its presence marks
+#: the folder as incomplete (a run still writing it, stopped or killed).
+MARKER = "INCOMPLETE.txt"
+
+
+def folder_state(path):
+    """``"missing"``, ``"empty"``, ``"complete"`` (a manifest), ``"incomplete"`` (the marker) or ``"foreign"``."""
+    path = Path(path)
+    if not path.exists():
+        return "missing"
+    if not path.is_dir():
+        return "file"
+    if (path / MARKER).exists():
+        return "incomplete"
+    if (path / MANIFEST).exists():
+        return "complete"
+    return "empty" if not any(path.iterdir()) else "foreign"
+
+
+def _alive(pid):
+    try:
+        os.kill(int(pid), 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError, ValueError):
+        return True
+    return True
+
+
+class OutputFolder:
+    """A folder of results that is either complete or marked incomplete, and replaced as a whole.
+
+    ``with OutputFolder(path, command="gdfe hinge ...") as out:`` checks ``path`` before any
+    work (it must not be a file, and an existing folder must be empty or one that gdfe wrote:
+    with a :data:`MANIFEST` or a :data:`MARKER`), empties a previous output there (a rerun
+    replaces, never mixes), and writes the marker :data:`MARKER` naming the command. Leaving
+    the block normally writes the manifest last (every file with its size and SHA-256, and
+    :attr:`status`) and removes the marker. On an error, Ctrl-C or a kill the marker stays
+    (saying how the run ended where it can): a folder with ``INCOMPLETE.txt`` is incomplete.
+
+    Parameters
+    ----------
+    path : str or Path
+    command : str, optional
+        The command line that writes it (recorded in the marker and the manifest).
+    name : str
+        The option's name in messages (``--out``).
+
+    Attributes
+    ----------
+    status : dict
+        Entries added to the manifest (e.g. ``converged``).
+    left : str or None
+        After a failure: what the folder holds, in words (``path``: N files, marked incomplete).
+    """
+
+    def __init__(self, path, command=None, name="--out"):
+        if path is None or isinstance(path, bool) or not isinstance(path, (str, Path)) or str(path).strip() == "":
+            raise GdfeTypeError(f"{name}: expected the name of a folder, got {path!r}")
+        self.path = Path(path)
+        self.command = command
+        self.name = name
+        self.status = {}
+        self.left = None
+        self.check()
+
+    def check(self):
+        """Refuse a path that is a file, or a folder with files gdfe did not write, or one being written."""
+        from gdfe._validation import GdfeError
+
+        state = folder_state(self.path)
+        if state == "file":
+            raise GdfeError(f"{self.name}: expected a folder, got the file {self.path}")
+        if state == "foreign":
+            raise GdfeError(f"{self.name}: {self.path} is a folder with files that gdfe did not write (no {MANIFEST}); "
+                            f"gdfe replaces only its own output folders: give a new or empty folder")
+        if state == "incomplete":
+            info = _read_marker(self.path / MARKER)
+            if info.get("host") == _host() and info.get("pid") not in (None, os.getpid()) and _alive(info["pid"]):
+                raise GdfeError(f"{self.name}: {self.path} is being written by another gdfe run (process "
+                                f"{info['pid']}: {info.get('command', '?')})")
+        return state
+
+    def __enter__(self):
+        import shutil
+
+        state = self.check()
+        if state in ("complete", "incomplete"):  # a previous output of gdfe: replaced as a whole
+            for child in self.path.iterdir():
+                if child.is_dir() and not child.is_symlink():
+                    shutil.rmtree(child)
+                else:
+                    child.unlink()
+        self.path.mkdir(parents=True, exist_ok=True)
+        self._write_marker("running")
+        return self
+
+    def _write_marker(self, how, detail=""):
+        import datetime
+
+        lines = [f"This folder is incomplete: {how}.", "",
+                 f"command: {self.command or '?'}", f"pid: {os.getpid()}", f"host: {_host()}",
+                 f"time: {datetime.datetime.now().isoformat(timespec='seconds')}"]
+        if detail:
+            lines += ["", detail]
+        write_text(self.path / MARKER, "\n".join(lines) + "\n")
+
+    def files(self):
+        """The files written so far, relative to the folder (the marker and manifest left out)."""
+        return sorted(str(p.relative_to(self.path)) for p in self.path.rglob("*")
+                      if p.is_file() and p.name not in (MARKER, MANIFEST) and not p.name.startswith("."))
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is None:
+            self._finish()
+            return False
+        files = self.files()
+        how = ("stopped by Ctrl-C" if issubclass(exc_type, KeyboardInterrupt)
+               else f"stopped by an error ({exc_type.__name__}: {exc})")
+        try:
+            if not files:  # nothing written: leave no folder behind
+                (self.path / MARKER).unlink()
+                if not any(self.path.iterdir()):
+                    self.path.rmdir()
+                self.left = f"nothing was written to {self.path}"
+            else:
+                self._write_marker(how, f"{len(files)} files were written before it stopped.")
+                self.left = (f"{self.path} holds the {len(files)} files written so far and is marked incomplete "
+                             f"({MARKER}); rerun to replace it")
+        except OSError:  # pragma: no cover - the folder went away under us
+            self.left = f"{self.path} may be incomplete"
+        return False
+
+    def _finish(self):
+        import datetime
+        import hashlib
+
+        from gdfe._version import __version__
+
+        entries = {}
+        for rel in self.files():
+            h = hashlib.sha256()
+            with open(self.path / rel, "rb") as fh:
+                for block in iter(lambda: fh.read(1 << 20), b""):
+                    h.update(block)
+            entries[rel] = {"bytes": (self.path / rel).stat().st_size, "sha256": h.hexdigest()}
+        manifest = {"complete": True, "gdfe": __version__, "command": self.command,
+                    "time": datetime.datetime.now().isoformat(timespec="seconds"), **self.status, "files": entries}
+        write_json(self.path / MANIFEST, manifest)
+        (self.path / MARKER).unlink()
+
+
+def _host():
+    import socket
+
+    return socket.gethostname()
+
+
+def _read_marker(path):
+    info = {}
+    try:
+        for line in Path(path).read_text(errors="replace").splitlines():
+            key, sep, value = line.partition(": ")
+            if sep and key in ("command", "pid", "host", "time"):
+                info[key] = int(value) if key == "pid" and value.strip().isdigit() else value
+    except OSError:
+        pass
+    return info

@@ -6,7 +6,7 @@ import numpy as np
 
 from gdfe._validation import GdfeError, GdfeTypeError, check_number
 
-__all__ = ["fold_angle", "curvature_profile", "rigid_align", "shape_distance", "column_frames"]
+__all__ = ["fold_angle", "curvature_profile", "rigid_align", "shape_distance", "column_frames", "panel_angles"]
 
 
 def rigid_align(source, target, weights=None):
@@ -196,3 +196,75 @@ def _points_design(result, design):
     if pts.shape != design.mesh.points.shape:
         raise GdfeError(f"result: expected points of shape {design.mesh.points.shape}, got {pts.shape}")
     return pts, design
+
+
+def panel_angles(result, design=None, min_cells=2):
+    """The fold between every two rigid panels that one run of contracting cells joins.
+
+    Panels are the connected groups (side by side in the plane) of rigid cells, at least
+    ``min_cells`` columns each; hinges the connected groups of the other cells. Where a hinge
+    touches two panels, its fold is the angle of the rotation between the panels' best
+    rotations from the flat print (:func:`rigid_align` of their vertices): 0 flat, pi folded
+    onto itself (a fold beyond pi reads as less; :func:`fold_angle` unwraps a hinge strip's).
+
+    Parameters
+    ----------
+    result : gdfe.Result or (n, 3) float array [mm]
+    design : Design, optional
+        Needed when ``result`` is an array.
+    min_cells : int
+        Smallest panel (cell columns) measured.
+
+    Returns
+    -------
+    list of dict
+        ``panels`` (two panel numbers, 1-based, ordered by their first cell), ``hinge_cells``
+        (columns of the hinge joining them) and ``angle_rad``; sorted by the panels.
+    """
+    import math
+
+    from scipy import ndimage
+
+    from gdfe.material import Material
+
+    if design is None:
+        design, points = result.design, np.asarray(result.points, float)
+    else:
+        points = np.asarray(result, float)
+    mesh = design.mesh
+    if points.shape != mesh.points.shape:
+        raise GdfeError(f"points: expected shape {mesh.points.shape}, got {points.shape}")
+    i, j = mesh.cell_ij.T
+    nx, ny = int(i.max()) + 1, int(j.max()) + 1
+    rigid = np.zeros((nx, ny), bool)
+    other = np.zeros((nx, ny), bool)
+    is_rigid = design.material == Material.RIGID
+    rigid[i[is_rigid], j[is_rigid]] = True
+    other[i[~is_rigid], j[~is_rigid]] = True
+    panels, n_panels = ndimage.label(rigid)
+    sizes = np.bincount(panels.ravel(), minlength=n_panels + 1)
+    hinges, n_hinges = ndimage.label(other & ~rigid)
+    rot = {}
+
+    def rotation(label):
+        if label not in rot:
+            cols = panels[i, j] == label
+            vid = np.unique(mesh.cells[cols])
+            rot[label] = rigid_align(mesh.points[vid], points[vid])[0]
+        return rot[label]
+
+    found = {}
+    cross = ndimage.generate_binary_structure(2, 1)
+    for h, box in enumerate(ndimage.find_objects(hinges), start=1):
+        box = tuple(slice(max(0, b.start - 1), b.stop + 1) for b in box)  # the hinge and its neighbours
+        region = hinges[box] == h
+        touching = np.unique(panels[box][ndimage.binary_dilation(region, cross) & rigid[box]])
+        touching = [int(t) for t in touching if t and sizes[t] >= min_cells]
+        for a_idx, a in enumerate(touching):
+            for b in touching[a_idx + 1:]:
+                rel = rotation(a).T @ rotation(b)
+                angle = math.acos(float(np.clip((np.trace(rel) - 1.0) / 2.0, -1.0, 1.0)))
+                key = (a, b)
+                found.setdefault(key, {"panels": [a, b], "hinge_cells": 0, "angle_rad": angle})
+                found[key]["hinge_cells"] += int(region.sum())
+    return [found[k] for k in sorted(found)]

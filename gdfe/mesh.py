@@ -11,9 +11,14 @@ import dataclasses
 
 import numpy as np
 
-from gdfe._validation import GdfeError, check_int, check_positive
+from gdfe._validation import GdfeError, check_int, check_length
+from gdfe.resources import check_design_cells
 
-__all__ = ["HexMesh", "sheet_mesh"]
+__all__ = ["HexMesh", "sheet_mesh", "DEFAULT_NZ"]
+
+#: Cell layers through the film when none is given: the same for every way a design is made
+#: (:func:`gdfe.hinge`, layouts, masks, drawings, design files and ``gdfe hinge``).
+DEFAULT_NZ = 1
 
 # (di, dj, dk) offsets of the eight vertices of a cell in VTK order
 _HEX_OFFSETS = np.array(
@@ -58,7 +63,7 @@ class HexMesh:
         return np.full(self.n_cells, float(np.prod(self.spacing)))
 
 
-def sheet_mesh(keep, dx, dy, h, nz=2, origin=(0.0, 0.0)):
+def sheet_mesh(keep, dx, dy, h, nz=DEFAULT_NZ, origin=(0.0, 0.0)):
     """Mesh a film whose in-plane cells are given by a boolean grid.
 
     Parameters
@@ -85,8 +90,9 @@ def sheet_mesh(keep, dx, dy, h, nz=2, origin=(0.0, 0.0)):
         raise GdfeError(f"keep: expected a non-empty 2-D boolean grid, got shape {keep.shape}")
     if not keep.any():
         raise GdfeError("keep: the grid has no cell of film")
-    dx, dy, h = check_positive("dx", dx), check_positive("dy", dy), check_positive("h", h)
+    dx, dy, h = check_length("dx", dx), check_length("dy", dy), check_length("h", h)
     nz = check_int("nz", nz)
+    check_design_cells("design", int(np.count_nonzero(keep)) * nz)
     nx, ny = keep.shape
     ii, jj = np.nonzero(keep)
     order = np.lexsort((ii, jj))  # row-major: j slow, i fast

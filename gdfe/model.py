@@ -63,8 +63,8 @@ from pathlib import Path
 import numpy as np
 
 from gdfe import paper
-from gdfe._validation import (GdfeError, GdfeFileNotFoundError, GdfeTypeError, check_choice, check_number,
-                              describe)
+from gdfe._validation import (GdfeError, GdfeFileNotFoundError, GdfeTypeError, check_choice, check_keys,
+                              check_number, describe, read_text)
 
 __all__ = ["DeformationModel", "Parameter", "PRINCIPLES", "MECHANISMS", "paper_model", "load_model",
            "as_model", "MODEL_FORMAT"]
@@ -648,13 +648,7 @@ _DATA_KEYS = ("file", "sha256", "n_tests", "rmse_rad", "held_out_rmse_rad", "hel
 
 
 def _unknown(where, keys, known):
-    import difflib
-
-    for k in keys:
-        if k not in known:
-            near = difflib.get_close_matches(k, known, n=1)
-            hint = f" (did you mean {near[0]!r}?)" if near else ""
-            raise GdfeError(f"{where}: unknown key {k!r}{hint}; expected some of {', '.join(known)}")
+    check_keys(where, keys, known)
 
 
 def _num(where, v, *, integer=False):
@@ -688,9 +682,7 @@ def load_model(path):
     if not path.is_file():
         raise GdfeFileNotFoundError(f"model file not found: {path}")
     try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError:
-        raise GdfeError(f"{path.name}: not a text file (expected a TOML model file)") from None
+        doc = tomllib.loads(read_text(path, "TOML model file"))
     except tomllib.TOMLDecodeError as exc:
         raise GdfeError(f"{path.name}: not valid TOML: {exc}") from None
     name = path.name

@@ -184,8 +184,10 @@ def main_of(module_name):
 
 
 def run_and_print(module, resolution, out, as_json):
+    """Run a study and print its headlines, or its numbers as JSON (``as_json`` True or ``"-"``; a file
+    name: the JSON written there beside the headlines)."""
     result = module.run(resolution=resolution, out=out)
-    if as_json:
+    if as_json is True or as_json == "-":
         from gdfe.io import json_default
 
         print(json.dumps(public(result), indent=2, default=json_default))
@@ -193,6 +195,11 @@ def run_and_print(module, resolution, out, as_json):
         print(format_headlines(result))
         if out is not None:
             print(f"  wrote {Path(out) / (module.NAME + '.png')} and {module.NAME}.json")
+        if as_json:
+            from gdfe.io import write_json
+
+            write_json(as_json, public(result))
+            print(f"  wrote {as_json}")
     ok = result.get("converged", True) and all(h["passed"] for h in result["headlines"])
     return 0 if ok else 1
 

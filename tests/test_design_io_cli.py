@@ -93,11 +93,11 @@ def test_toml_designs(tmp_path):
 
 @pytest.mark.parametrize("text, match", [
     ("[hinge]\nlength = 1\n", r"missing \[film\] table"),
-    ("[film]\nR = 0.7\nfoo = 1\n[hinge]\nlength = 1\n", r"unknown key\(s\) \['foo'\]"),
+    ("[film]\nR = 0.7\nfoo = 1\n[hinge]\nlength = 1\n", r"\[film\]: unknown key 'foo'"),
     ("[film]\nh = 0.29\n[hinge]\nlength = 1\n", "needs R .* or d"),
     ("[film]\nR = 0.7\n", r"exactly one of \[hinge\], \[layout\], \[masks\]"),
     ("[film]\nR = 0.7\n[hinge]\nwidth = 1\n", r"\[hinge\] is missing 'length'"),
-    ("[film]\nR = 0.7\n[hinge]\nlength = 1\n[simulate]\nspeed = 2\n", r"\[simulate\] has unknown"),
+    ("[film]\nR = 0.7\n[hinge]\nlength = 1\n[simulate]\nspeed = 2\n", r"\[simulate\]: unknown key 'speed'"),
     ("[film\nR = 0.7\n", "not valid TOML"),
     ("[film]\nd = 0.11\n[hinge]\nlength = 1\n", "d=0.11 mm gives R="),
 ])

@@ -376,4 +376,4 @@ def test_cli_verdict_first(tmp_path, capsys):
     assert list(d)[:3] == ["verdict", "verdict_text", "noise"]
     assert d["noise"] == {"value": 0.1, "source": "given", "text": "noise 0.1 rad (given)"}
     assert main(["diagnose", str(gdfe.TABLE1), "--sigma", "-1", "--check", "none"]) == 1
-    assert "sigma: expected a positive noise in rad" in capsys.readouterr().err
+    assert "--sigma: expected a positive finite number, got -1" in capsys.readouterr().err

@@ -248,7 +248,7 @@ def test_load_design_reads_drawings_and_their_tables(tmp_path):
     des, _ = gdfe.load_design(tmp_path / "part.toml")
     assert des.n_cells == 20 * 8
     (tmp_path / "bad.toml").write_text('[film]\nd = 0.33\n[svg]\nfile = "part.svg"\npixels = 0.5\n')
-    with pytest.raises(ValueError, match=r"bad.toml: \[svg\] has unknown key\(s\) \['pixels'\]"):
+    with pytest.raises(ValueError, match=r"bad.toml: \[svg\]: unknown key 'pixels' \(did you mean 'pixel'\?\)"):
         gdfe.load_design(tmp_path / "bad.toml")
     (tmp_path / "bad2.toml").write_text('[film]\nd = 0.33\n[svg]\nfile = "part.svg"\n')
     with pytest.raises(ValueError, match=r"bad2.toml: \[svg\] is missing 'pixel'"):

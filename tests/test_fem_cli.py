@@ -38,7 +38,9 @@ def test_hinge_that_does_not_converge_exits_non_zero(capsys):
     (["--length", "0"], "length: expected a positive finite number, got 0\n"),
     (["--length", "1", "--d", "-0.2"], "d: expected a positive finite number, got -0.2\n"),
     (["--length", "1", "--nu", "0.5"], "nu: expected a Poisson's ratio in (-1, 0.5), got 0.5\n"),
-    (["--length", "1", "--eigenstrain", "-1.2"], "eigenstrain: expected a strain > -1 (a free stretch 1 + strain > 0), got -1.2\n"),
+    (["--length", "1", "--eigenstrain", "-1.2"],
+     "--eigenstrain: expected the film's free contraction R_free - 1 in (-1, 0] (the film shrinks when heated), "
+     "got -1.2\n"),
     (["--length", "1", "--E-ratio", "0"], "E_ratio: expected a positive finite number, got 0\n"),
 ])
 def test_bad_hinge_input_is_one_line_and_exit_1(capsys, argv, match):

@@ -195,7 +195,7 @@ def test_missing_and_binary_model_files(tmp_path):
 # -- the loop through the command line -----------------------------------------------------------
 def test_calibrate_writes_a_model_that_hinge_reads(tmp_path, capsys):
     path = tmp_path / "k.toml"
-    assert main(["calibrate", str(gdfe.TABLE1), "--model", "eq1-d1", "--boot", "50", "--model-out", str(path)]) == 0
+    assert main(["calibrate", str(gdfe.TABLE1), "--model", "eq1-d1", "--boot", "100", "--model-out", str(path)]) == 0
     m = load_model(path)
     assert m.principle == "eq1-d1" and m.data["held_out_rmse_rad"] == pytest.approx(0.3381, abs=1e-4)
     capsys.readouterr()

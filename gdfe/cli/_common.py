@@ -1,24 +1,144 @@
-"""What the subcommands share: printing results, the solver's options, writing outputs."""
+"""What the subcommands share: printing results, the solver's options, writing outputs.
+
+Conventions of every subcommand: ``--json`` prints the result as JSON on standard output
+instead of the text (``--json -`` too), ``--json FILE.json`` writes it there and prints the
+text; an output folder (``--out DIR``) is written by :class:`gdfe.io.OutputFolder`, complete
+or marked incomplete, a rerun replacing it; a run that the estimate calls large
+(:mod:`gdfe.resources`) starts only with ``--large``.
+"""
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import json
+import math
 import os
 import sys
+from pathlib import Path
 
+from gdfe._validation import GdfeError, check_choice
 from gdfe.io import json_default
 
 __all__ = ["emit", "solver_args", "solve", "write_outputs", "exit_status", "scheduler_arg", "using_scheduler",
-           "contact_fields", "contact_text"]
+           "contact_fields", "contact_text", "json_arg", "out_arg", "output_folder", "iterations_text",
+           "status_word", "command_line", "TRUSTED_TOL"]
+
+#: The loosest ``--tol`` (units of h) the command line accepts: the stopping study
+#: (``gdfe study stopping``, its ``TIGHT``) checks solves up to this tolerance against the
+#: accuracy they asked for; looser ones can stop far from the solution while their test passes.
+TRUSTED_TOL = 1e-4
 
 
-def emit(obj, as_json: bool, text: str) -> None:
-    """Print ``obj`` as JSON if ``as_json``, else the human-readable ``text``."""
+class _JsonAction(argparse.Action):
+    """``--json`` (standard output), ``--json -`` (the same) or ``--json FILE.json``."""
+
+    def __call__(self, parser, namespace, value, option_string=None):
+        if value != "-" and not str(value).lower().endswith(".json"):
+            parser.error(f"{option_string}: expected FILE.json, or nothing (or '-') for standard output, got "
+                         f"{value!r}; to print JSON, put {option_string} after the other arguments")
+        setattr(namespace, self.dest, value)
+
+
+def json_arg(p, what="the result", dest="json"):
+    """``--json [FILE.json]``, the same on every subcommand."""
+    p.add_argument("--json", nargs="?", const="-", default=None, metavar="FILE.json", action=_JsonAction, dest=dest,
+                   help=f"{what} as JSON on standard output instead of the text (--json or --json -), or written "
+                        "to FILE.json beside the text")
+
+
+def _finite(obj):
+    """``obj`` with non-finite floats as None (JSON has no NaN or infinity)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    return obj
+
+
+def emit(obj, as_json, text: str) -> None:
+    """The result: ``text``, or ``obj`` as JSON on standard output (``as_json`` True or ``"-"``), or both
+    (``as_json`` a file name: the JSON written there, the text printed with a line saying so)."""
+    payload = json.loads(json.dumps(obj, default=json_default))  # numpy -> Python, then NaN -> null
+    if as_json is True or as_json == "-":
+        print(json.dumps(_finite(payload), indent=2, allow_nan=False))
+        return
     if as_json:
-        print(json.dumps(obj, indent=2, default=json_default))
-    else:
-        print(text)
+        from gdfe.io import write_text
+
+        path = Path(as_json)
+        try:
+            write_text(path, json.dumps(_finite(payload), indent=2, allow_nan=False) + "\n")
+        except OSError as exc:
+            raise GdfeError(f"--json: cannot write {path}: {exc.strerror or exc}") from None
+        text = f"{text}\nwrote {path}"
+    print(text)
+
+
+def _out_path(text):
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"expected the name of a folder, got {text!r}")
+    return Path(text)
+
+
+def out_arg(p, required=False, help="output folder"):
+    """``--out DIR``: an output folder, complete or marked incomplete, replaced by a rerun."""
+    p.add_argument("--out", type=_out_path, required=required, default=None, metavar="DIR",
+                   help=f"{help} (written completely or marked incomplete by {'INCOMPLETE.txt'}; a rerun "
+                        "replaces an output folder of gdfe, and no other folder is written into)")
+
+
+def command_line(args):
+    """The command as typed (``args.argv``, set by :func:`gdfe.cli.main`), for an output folder's marker and manifest."""
+    import shlex
+
+    return shlex.join(["gdfe", *getattr(args, "argv", [])])
+
+
+def output_folder(path, args, name="--out"):
+    """An :class:`gdfe.io.OutputFolder` for ``path`` (checked now; entered when the command writes), or None."""
+    from gdfe.io import OutputFolder
+
+    return None if path is None else OutputFolder(path, command=command_line(args), name=name)
+
+
+#: Errors of the file system that are the environment's, not a bug: no space, no permission, read-only.
+_ENVIRONMENT_ERRNOS = {"ENOSPC", "EACCES", "EPERM", "EROFS", "EDQUOT", "ENOTDIR", "EISDIR", "ENAMETOOLONG", "EEXIST"}
+
+
+@contextlib.contextmanager
+def noting(*folders):
+    """Run a command's body: on Ctrl-C note what each output folder was left as (for the one line
+    :func:`gdfe.cli.main` prints); a full disk or a missing permission is a user error, not a bug."""
+    import errno
+
+    try:
+        yield
+    except KeyboardInterrupt as exc:
+        exc.gdfe_left = [f.left or f"nothing was written to {f.path} (it is unchanged)" for f in folders if f]
+        raise
+    except OSError as exc:
+        if errno.errorcode.get(exc.errno) not in _ENVIRONMENT_ERRNOS:
+            raise
+        where = exc.filename or (folders[0].path if folders and folders[0] else "a file")
+        left = "; ".join(f.left for f in folders if f and f.left)
+        raise GdfeError(f"cannot write {where}: {exc.strerror}" + (f" ({left})" if left else "")) from None
+
+
+def status_word(res):
+    """``converged`` or ``NOT CONVERGED`` for a result's text, PNG title and JSON ``status``."""
+    return "converged" if res.converged else "NOT CONVERGED"
+
+
+def iterations_text(res):
+    """``converged in 33 iterations over 5 frames (4-9 per frame)`` (or in N iterations, one frame)."""
+    per = list(res.frame_iterations)
+    head = f"{status_word(res)} in {res.iterations} iterations"
+    if len(per) > 1:
+        head += f" over {len(per)} frames ({min(per)}-{max(per)} per frame)"
+    return head
 
 
 def scheduler_arg(p):
@@ -93,29 +213,68 @@ def solver_args(p, defaults_from_file=False):
                    help="solve without self-contact (the result is still checked for self-penetration)")
     p.add_argument("--allow-penetration", action="store_true",
                    help="exit with status 0 even when the result passes through itself")
+    p.add_argument("--large", action="store_true",
+                   help="run even when the estimate (printed) says the run is long (over "
+                        "10 min) or takes more than half the machine's memory")
 
 
-def solve(design, args, options=None):
-    """:func:`gdfe.simulate` with the options of a design file, overridden by the command line's."""
+def solve(design, args, options=None, source=None):
+    """:func:`gdfe.simulate` with the options of a design file, overridden by the command line's.
+
+    Before it starts: the options are checked (those of a design file with its name,
+    ``source``), ``tol`` must be at most :data:`TRUSTED_TOL`, and the run's estimate
+    (:func:`gdfe.resources.estimate_run`) must fit the machine, and, where it is large, be
+    confirmed with ``--large``. The solve shows its progress (:class:`SolveProgress`).
+    """
     import gdfe
+    from gdfe.cli._progress import SolveProgress, progress_mode
+    from gdfe.resources import estimate_run
+    from gdfe.solver import METHODS, MULTILEVEL_CELLS
 
     opts = dict(options or {})
+    where = f"{source}: [simulate] " if source else ""
+    for key, choices in (("method", METHODS), ("contact", ("auto", "on", "off")), ("on_drift", ("warn", "stop"))):
+        if key in opts:
+            check_choice(f"{where}{key}", opts[key], choices)
     for key in ("method", "steps", "tol", "max_iter", "contact", "on_drift"):
         v = getattr(args, key, None)
         if v is not None:
             opts[key] = v
-    return gdfe.simulate(design, **opts)
+    tol = opts.get("tol")
+    if isinstance(tol, (int, float)) and not isinstance(tol, bool) and tol > TRUSTED_TOL:
+        name = "--tol" if getattr(args, "tol", None) is not None else f"{where}tol"
+        raise GdfeError(f"{name}: expected at most {TRUSTED_TOL:g} (units of h; the default scales with the part), "
+                        f"got {tol:g}: a looser tolerance can stop far from the shape (gdfe study stopping measures "
+                        f"it), so its result would not be converged")
+    steps = opts.get("steps", 1)
+    if isinstance(steps, int) and not isinstance(steps, bool) and steps >= 1:
+        est = estimate_run(design.n_cells, steps, design.mesh.n_points)
+        if not est.fits:
+            raise GdfeError(f"this run would not fit in memory: {est.text()}; coarsen the design or use fewer --steps")
+        if est.large and not getattr(args, "large", False):
+            raise GdfeError(f"this run is large: {est.text()}; pass --large to run it anyway, or coarsen the design "
+                            "(or fewer --steps)")
+        if est.seconds > 30 and progress_mode(args) is not False:
+            print(f"gdfe: estimated {est.text()}", file=sys.stderr)
+    multilevel = opts.get("init", "auto") == "auto" and design.n_cells > MULTILEVEL_CELLS
+    with SolveProgress(progress_mode(args), frames=steps if isinstance(steps, int) else 1, cells=design.n_cells,
+                       multilevel=multilevel, contact=opts.get("contact", "auto")):
+        return gdfe.simulate(design, **opts)
 
 
-def write_outputs(result, out, name, summary):
-    """The VTU series, a PNG and ``result.json`` of a simulation in ``out``."""
+def write_outputs(result, out, name, summary, progress=None):
+    """The VTU series, a PNG (its title marked NOT CONVERGED where it is not) and ``result.json`` in ``out``."""
     from gdfe.io import render_png, write_json, write_series
 
     out.mkdir(parents=True, exist_ok=True)
-    pvd = write_series(result, out, name=name)
-    png = render_png(result, out / f"{name}.png", title=summary.get("title"))
-    write_json(out / "result.json", summary)
-    return {"pvd": str(pvd), "png": str(png), "json": str(out / "result.json")}
+    pvd = write_series(result, out, name=name, progress=progress)
+    title = summary.get("title") or name
+    if not result.converged:
+        title = f"NOT CONVERGED (residual {result.residual:.2g} after {result.iterations} iterations): {title}"
+    png = render_png(result, out / f"{name}.png", title=title)
+    files = {"pvd": str(pvd), "png": str(png), "json": str(out / "result.json")}
+    write_json(out / "result.json", {**summary, "files": files})
+    return files
 
 
 def contact_fields(res):

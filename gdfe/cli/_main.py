@@ -8,12 +8,18 @@ inside the function that runs.
 
 Errors: a :class:`gdfe.GdfeError` (something wrong in what the user gave) is printed as
 one line, with exit status 1. Any other exception is a bug: it keeps its traceback, after a
-line saying how to report it. ``--debug`` prints the traceback of user errors too.
+line saying how to report it. ``--debug`` prints the traceback of user errors too. Ctrl-C
+stops a command with one line saying what it left (an output folder is then marked
+incomplete) and exit status 130.
+
+The global options (``-v``, ``-q``, ``--progress``, ``--debug``) are accepted before or
+after the subcommand; the log says each distinct warning once.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import sys
 import traceback
@@ -30,34 +36,104 @@ SUBCOMMANDS = (hinge, simulate, design, view, fem, study, report, calibrate, dia
 ISSUES = "the project's issue tracker"
 
 
+def _global_options(parser, top):
+    """The options every subcommand takes, before or after its name (``top``: the main parser's defaults)."""
+    from gdfe import __version__
+
+    d = (lambda v: v) if top else (lambda v: argparse.SUPPRESS)
+    parser.add_argument("-v", "--verbose", action="store_true", default=d(False), help="log what the solver does")
+    parser.add_argument("-q", "--quiet", action="store_true", default=d(False), help="no progress bars")
+    parser.add_argument("--progress", action="store_true", default=d(False),
+                        help="progress bars even when standard error is not a terminal")
+    parser.add_argument("--debug", action="store_true", default=d(False),
+                        help="print the traceback of every error, user errors included")
+    parser.add_argument("--version", action="version", version=f"gdfe {__version__}")
+
+
+def _subparsers(parser):
+    """Every subcommand parser below ``parser`` (``fem hinge`` too)."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in dict.fromkeys(action.choices.values()):
+                yield sub
+                yield from _subparsers(sub)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``gdfe`` argument parser with every subcommand."""
     parser = argparse.ArgumentParser(
         prog="gdfe",
         description="Geometry-driven finite elements for 4D-printed heat-shrinking structures.",
     )
-    parser.add_argument("-v", "--verbose", action="store_true", help="log progress")
-    parser.add_argument("--debug", action="store_true",
-                        help="print the traceback of every error, user errors included")
+    _global_options(parser, top=True)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for module in SUBCOMMANDS:
         module.register(sub)
+    for p in _subparsers(parser):
+        _global_options(p, top=False)
     return parser
+
+
+class _Once(logging.Filter):
+    """Let each distinct message of a logger through once (a sweep repeats the same warning)."""
+
+    def __init__(self):
+        super().__init__()
+        self.seen = set()
+
+    def filter(self, record):
+        key = (record.name, record.levelno, record.getMessage())
+        if key in self.seen:
+            return False
+        self.seen.add(key)
+        return True
+
+
+@contextlib.contextmanager
+def _logging(verbose):
+    """The command's log on standard error (INFO with ``-v``, else WARNING), each distinct message
+    once; the root logger is left as it was when the command ends (``main`` may run in a notebook)."""
+    root = logging.getLogger()
+    level = root.level
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
+    handler.addFilter(_Once())
+    root.setLevel(logging.INFO if verbose else logging.WARNING)
+    root.addHandler(handler)
+    try:
+        yield
+    finally:
+        root.removeHandler(handler)
+        root.setLevel(level)
+
+
+def _name(args):
+    """``gdfe hinge``, ``gdfe fem hinge``: the command in messages."""
+    sub = getattr(args, "fem_command", None)
+    return f"gdfe {args.command}" + (f" {sub}" if sub else "")
 
 
 def main(argv=None) -> int:
     """Run the ``gdfe`` command line; return the exit status."""
     parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(argv)
-    logging.basicConfig(
-        level=logging.INFO if args.verbose else logging.WARNING,
-        format="%(levelname)s %(name)s: %(message)s",
-    )
+    args.argv = argv
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    with _logging(args.verbose):
+        return _dispatch(args)
+
+
+def _dispatch(args):
+    """Run the subcommand; turn user errors, Ctrl-C and a closed pipe into an exit status."""
     try:
         return int(args.func(args) or 0)
+    except KeyboardInterrupt as exc:
+        left = "; ".join(getattr(exc, "gdfe_left", [])) or "no output folder was being written"
+        print(f"{_name(args)}: interrupted: {left}", file=sys.stderr)
+        return 130
     except BrokenPipeError:  # the reader of our output went away (gdfe ... | head): stop quietly
         import os
 
@@ -67,12 +143,12 @@ def main(argv=None) -> int:
     except GdfeError as exc:
         if args.debug:
             traceback.print_exc()
-        print(f"gdfe {args.command}: error: {exc}", file=sys.stderr)
+        print(f"{_name(args)}: error: {exc}", file=sys.stderr)
         return 1
     except Exception:
         from gdfe import __version__
 
-        print(f"gdfe {args.command}: internal error: this is a bug in gdfe {__version__}, not a problem "
+        print(f"{_name(args)}: internal error: this is a bug in gdfe {__version__}, not a problem "
               f"with your input. Please report it to {ISSUES} with the command line and the traceback "
               f"below.", file=sys.stderr)
         raise

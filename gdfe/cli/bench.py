@@ -2,15 +2,20 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 
-from gdfe.cli._common import emit
+from gdfe.cli._common import emit, json_arg, noting, out_arg, output_folder
 
 __all__ = ["register", "run"]
 
 
 def _sizes(text):
-    return [int(float(x)) for x in text.split(",")]
+    import argparse
+
+    try:
+        sizes = [int(float(x)) for x in text.split(",")]
+    except (ValueError, OverflowError):
+        raise argparse.ArgumentTypeError(f"expected cell counts separated by commas (e.g. 1e3,1e4), got {text!r}") from None
+    return sizes  # counts below 4 are refused by studies.bench.run
 
 
 def _sizes_or_none(text):
@@ -22,22 +27,42 @@ def register(subparsers):
     p = subparsers.add_parser("bench", help="benchmark GDFE (hinges, mask sheets, lower bound, FEM)",
                               description="GDFE's speed, against its own lower bound and the reference FEM.")
     p.add_argument("--quick", action="store_true", help="tiny sizes, one repeat, no FEM (seconds)")
-    p.add_argument("--json", action="store_true", help="print JSON instead of tables")
-    p.add_argument("--out", type=Path, help="write bench.json, bench_scaling.png and the masks here")
+    json_arg(p, "the numbers")
+    out_arg(p, help="write bench.json, bench_scaling.png and the masks into this folder")
     p.add_argument("--sizes", type=_sizes, help="corrugation sheet sizes in cells, comma-separated (e.g. 1e3,1e4,1e5,1e6)")
     p.add_argument("--freeform-sizes", type=_sizes_or_none,
                    help="sizes of the Figure 8 plates in cells (default 1e5; 'none' for none)")
     p.add_argument("--no-hinges", dest="hinges", action="store_false", help="skip the Figure 6 hinges")
     p.add_argument("--no-fem", dest="fem", action="store_false", default=None, help="skip the FEM comparison")
     p.add_argument("--fem", dest="fem", action="store_true", help="run the FEM comparison even with --quick")
+    p.add_argument("--large", action="store_true",
+                   help="run even when the estimate of a sheet size says it is long or takes most of the memory")
     p.set_defaults(func=run)
 
 
+def _check_sizes(args):
+    """Every sheet size fits the machine, and a large one is asked for with --large (estimates printed)."""
+    from gdfe._validation import GdfeError
+    from gdfe.resources import estimate_run
+
+    for n in list(args.sizes or []) + list(args.freeform_sizes or []):
+        est = estimate_run(n)
+        if not est.fits:
+            raise GdfeError(f"--sizes: a sheet of {n:,} cells would not fit in memory: {est.text()}")
+        if est.large and not args.large:
+            raise GdfeError(f"--sizes: a sheet of {n:,} cells is a large run: {est.text()}; pass --large to run it")
+
+
 def run(args):
+    from contextlib import nullcontext
+
     from studies import bench
 
-    res = bench.run(quick=args.quick, sizes=args.sizes, fem=args.fem, out=args.out,
-                    freeform_sizes=args.freeform_sizes, hinges=args.hinges)
+    _check_sizes(args)
+    folder = output_folder(args.out, args)
+    with noting(folder), (folder or nullcontext()):
+        res = bench.run(quick=args.quick, sizes=args.sizes, fem=args.fem, out=args.out,
+                        freeform_sizes=args.freeform_sizes, hinges=args.hinges)
     emit(res, args.json, bench.format_table(res))
     accelerated = [r for r in res["hinges"] if r["method"] in ("newton", "newton-cg")]
     sheets = [r for r in res["sheets"] if "skipped" not in r]

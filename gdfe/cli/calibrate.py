@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gdfe._validation import GdfeError, check_int, check_positive
-from gdfe.calibration import READINGS, held_out_rmse
-from gdfe.cli._common import emit
+from gdfe._validation import GdfeError, check_positive
+from gdfe.calibration import MAX_BOOT, MIN_BOOT, READINGS, check_boot, held_out_rmse
+from gdfe.cli._common import emit, json_arg
 
 __all__ = ["register", "run"]
 
@@ -19,18 +19,19 @@ def register(sub):
     p.add_argument("data", type=Path, help="CSV of folding tests")
     p.add_argument("--model", choices=READINGS + ("all",), default="eq1",
                    help="reading of Eq. 1 (default eq1, as printed)")
-    p.add_argument("--boot", type=int, default=2000, help="bootstrap resamples for the 95 %% CI (default 2000)")
+    p.add_argument("--boot", type=int, default=2000,
+                   help=f"bootstrap resamples for the 95 %% CI: 0 (none) or {MIN_BOOT} to {MAX_BOOT:g} (default 2000)")
     p.add_argument("--d", type=float, default=None, help="also print Eq. 3's R for this passive thickness [mm]")
     p.add_argument("--model-out", type=Path, default=None, metavar="M.toml",
                    help="save the fitted reading as a deformation model file (one --model, not all)")
-    p.add_argument("--json", action="store_true", help="print the fit as JSON")
+    json_arg(p, "the fit")
     p.set_defaults(func=run)
 
 
 def run(args):
     import gdfe
 
-    check_int("--boot", args.boot, minimum=0)
+    check_boot("--boot", args.boot)
     if args.model_out is not None and args.model == "all":
         raise GdfeError("--model-out: expected one --model (eq1, eq1-d1 or power), got all")
     tests = gdfe.load_folding_tests(args.data)

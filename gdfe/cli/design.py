@@ -17,7 +17,7 @@ from pathlib import Path
 
 from gdfe import paper
 from gdfe._validation import GdfeError
-from gdfe.cli._common import emit
+from gdfe.cli._common import emit, json_arg, noting, out_arg, output_folder
 
 __all__ = ["register", "run"]
 
@@ -34,7 +34,7 @@ def register(sub):
                                    "check and its deviation report.")
     p.add_argument("input", nargs="?", type=Path, help="couples (.toml), sketch (.csv or .svg)")
     p.add_argument("--text", help="letters of Figure 9 to design, one strip each (instead of INPUT)")
-    p.add_argument("--out", type=Path, required=True, help="output directory")
+    out_arg(p, required=True)
     p.add_argument("--pixel", type=float, help=f"printer pixel = pattern cell [mm] (default {DEFAULT_PIXEL:g})")
     p.add_argument("--w-min", type=float, help="narrowest contracting feature [mm], whole pixels (default one pixel)")
     g = p.add_mutually_exclusive_group()
@@ -57,7 +57,7 @@ def register(sub):
     p.add_argument("--spacing", type=float, default=0.2,
                    help="sketch SVG: sampling of curved segments [mm] (default 0.2)")
     p.add_argument("--no-check", action="store_true", help="write the files, skip the simulated check")
-    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    json_arg(p, "the summary")
     p.set_defaults(func=run)
 
 
@@ -119,6 +119,14 @@ def _targets(args, ch):
 
 
 def run(args):
+    import contextlib
+
+    folder = output_folder(args.out, args)
+    with noting(folder), contextlib.ExitStack() as stack:  # the folder is entered when the files are written
+        return _run(args, lambda: stack.enter_context(folder))
+
+
+def _run(args, begin_output):
     import gdfe
     from gdfe import inverse as inv
     from gdfe.fabrication import write_print_package
@@ -151,7 +159,7 @@ def run(args):
            "command line" if args.no_check else "default")
     film = {"h": h, "d": d, "K": K, "nz": 1} if d is not None else {"h": h, "R": R, "nz": 1}
     out = args.out
-    out.mkdir(parents=True, exist_ok=True)
+    begin_output()
     records, designs, status = [], {}, 0
     cache = {}
     for name, target in parts:

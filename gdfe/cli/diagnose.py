@@ -4,11 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gdfe._validation import GdfeError
-from gdfe.cli._common import emit
+from gdfe._validation import GdfeError, check_positive
+from gdfe.cli._common import emit, json_arg, noting, output_folder
 from gdfe.diagnosis.forward import CELLS
 from gdfe.diagnosis.shape import ALIGNMENTS
-from gdfe.io import write_json
 
 __all__ = ["register"]
 
@@ -29,9 +28,9 @@ def register(sub):
     p.add_argument("--process", default=None, metavar="COL[,COL]",
                    help="numeric columns partial_activation may use (default: every numeric column that "
                         "varies; '' for none)")
-    p.add_argument("--json", dest="json_out", metavar="OUT.json",
-                   help="write the diagnosis as JSON here ('-': print it instead of the summary)")
-    p.add_argument("--report", type=Path, metavar="DIR", help="write plots and summary.md here")
+    json_arg(p, "the diagnosis", dest="json_out")
+    p.add_argument("--report", type=_folder, metavar="DIR",
+                   help="write plots and summary.md into this folder (complete, or marked incomplete)")
     p.add_argument("--group", help="column with a group label for leave-one-group-out "
                                    "(default: 'group' if present)")
     p.add_argument("--no-pairs", action="store_true", help="fit single effects only")
@@ -53,38 +52,52 @@ def register(sub):
                     "simulation did not converge.")
     p.add_argument("design", type=Path, help="design file (.toml)")
     p.add_argument("measured", type=Path, help="point cloud or mesh: .ply, .vtu, .obj or .csv (x,y,z)")
-    p.add_argument("--json", dest="json_out", metavar="OUT.json",
-                   help="write the result as JSON here ('-': print it instead of the summary)")
-    p.add_argument("--report", type=Path, metavar="DIR", help="write plots and summary.md here")
+    json_arg(p, dest="json_out")
+    p.add_argument("--report", type=_folder, metavar="DIR",
+                   help="write plots and summary.md into this folder (complete, or marked incomplete)")
     p.add_argument("--align", choices=ALIGNMENTS, default="auto",
                    help="correspondences (a mesh of the design) or ICP; default: decide from the file")
     p.add_argument("--no-correct", action="store_true", help="skip the per-region correction fit")
     p.set_defaults(func=_cmd_diagnose_shape)
 
 
+def _folder(text):
+    import argparse
+
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"expected the name of a folder, got {text!r}")
+    return Path(text)
+
+
 def _cmd_diagnose(args):
+    folder = output_folder(args.report, args, name="--report")
+    with noting(folder):
+        return _diagnose(args, folder)
+
+
+def _diagnose(args, folder):
     from gdfe.diagnosis.angles import diagnose
 
+    if args.sigma is not None:
+        check_positive("--sigma", args.sigma)
+    if args.effect is not None and args.model_out is None:
+        raise GdfeError("--effect: expected --model-out too (it names the model to save)")
     process = None if args.process is None else [c.strip() for c in args.process.split(",") if c.strip()]
     diag = diagnose(args.data, group=args.group, sigma=args.sigma, process=process, pairs=not args.no_pairs,
                     check=None if args.check == "none" else args.check)
     obj = diag.as_dict()
     text = diag.text()
-    if args.effect is not None and args.model_out is None:
-        raise GdfeError("--effect: expected --model-out too (it names the model to save)")
     if args.model_out is not None:
         obj["model_file"], line = _save_model(diag, args)
         text += "\n" + line
-    if args.report:
+    if folder is not None:
         from gdfe.diagnosis.figures import write_report
 
-        files = write_report(diag, args.report)
+        with folder:
+            files = write_report(diag, args.report)
         obj["report"] = files
         text += f"\nreport: {files['summary']}"
-    if args.json_out and args.json_out != "-":
-        write_json(args.json_out, obj)
-        text += f"\nwrote {args.json_out}"
-    emit(obj, args.json_out == "-", text)
+    emit(obj, args.json_out, text)
     return 0 if diag.best.success else 3
 
 
@@ -111,20 +124,24 @@ def _save_model(diag, args):
 
 
 def _cmd_diagnose_shape(args):
+    folder = output_folder(args.report, args, name="--report")
+    with noting(folder):
+        return _diagnose_shape(args, folder)
+
+
+def _diagnose_shape(args, folder):
     from gdfe.diagnosis.shape import diagnose_shape
 
     res = diagnose_shape(args.design, args.measured, align=args.align, correct=not args.no_correct)
     obj = res.as_dict()
     text = res.text()
-    if args.report:
+    if folder is not None:
         from gdfe.diagnosis.figures import write_shape_report
 
-        obj["report"] = write_shape_report(res, args.report)
+        with folder:
+            obj["report"] = write_shape_report(res, args.report)
         text += f"\nreport: {obj['report']['summary']}"
-    if args.json_out and args.json_out != "-":
-        write_json(args.json_out, obj)
-        text += f"\nwrote {args.json_out}"
-    emit(obj, args.json_out == "-", text)
+    emit(obj, args.json_out, text)
     if not res.matches:
         return 4
     return 0 if res.converged else 3

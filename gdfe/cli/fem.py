@@ -8,7 +8,8 @@ scikit-fem is imported only when a subcommand runs.
 from __future__ import annotations
 
 from gdfe import paper
-from gdfe.cli._common import emit, scheduler_arg, using_scheduler
+from gdfe._validation import check_int, check_length, check_number
+from gdfe.cli._common import emit, json_arg, scheduler_arg, using_scheduler
 
 __all__ = ["register"]
 
@@ -46,7 +47,7 @@ def register(subparsers) -> None:
                    help="Newton iterations per load step (nonlinear)")
     p.add_argument("--min-step", dest="min_step", type=float, default=1e-3,
                    help="smallest load step before giving up (nonlinear)")
-    p.add_argument("--json", action="store_true", help="print JSON")
+    json_arg(p)
     p.set_defaults(func=_cmd_hinge)
 
     p = sub.add_parser("timoshenko-check",
@@ -54,7 +55,7 @@ def register(subparsers) -> None:
     p.add_argument("--element", choices=("hex1", "hex2", "both"), default="both",
                    help="element family (default both: trilinear shows the convergence rate, "
                         "triquadratic matches the formula to 1e-5)")
-    p.add_argument("--json", action="store_true", help="print JSON")
+    json_arg(p)
     p.set_defaults(func=_cmd_timoshenko_check)
 
     p = sub.add_parser("calibrate", help="fit E_passive/E_active and the eigenstrain to folding tests",
@@ -66,7 +67,7 @@ def register(subparsers) -> None:
     p.add_argument("--model", choices=("fem", "timoshenko"), default="fem")
     p.add_argument("--resolution", choices=tuple(HINGE_RESOLUTIONS), default="default")
     p.add_argument("--nu", type=float, default=0.35, help="Poisson's ratio of both layers")
-    p.add_argument("--json", action="store_true", help="print JSON")
+    json_arg(p, "the fit")
     scheduler_arg(p)
     p.set_defaults(func=_cmd_calibrate)
 
@@ -76,8 +77,15 @@ def _cmd_hinge(args) -> int:
     from reference_fem import (CALIBRATED_E_RATIO, CALIBRATED_EIGENSTRAIN, BilayerMaterial, curvature, fold_angle,
                                hinge_mesh, solve_linear, solve_nonlinear)
 
+    for name in ("length", "d", "h", "width", "panel_length"):
+        check_length(f"--{name.replace('_', '-')}", getattr(args, name))
+    check_int("--max-iter", args.max_iter)
+    check_number("--min-step", args.min_step, minimum=0.0, maximum=1.0, include_minimum=False,
+                 what="a load step in (0, 1]")
     ratio = CALIBRATED_E_RATIO if args.E_ratio is None else args.E_ratio
-    eps = CALIBRATED_EIGENSTRAIN if args.eigenstrain is None else args.eigenstrain
+    eps = CALIBRATED_EIGENSTRAIN if args.eigenstrain is None else check_number(
+        "--eigenstrain", args.eigenstrain, minimum=-1.0, maximum=0.0, include_minimum=False,
+        what="the film's free contraction R_free - 1 in (-1, 0] (the film shrinks when heated)")
     mat = BilayerMaterial.from_ratio(ratio, eps, nu=args.nu)
     strip = hinge_mesh(args.length, args.d, args.h, width=args.width,
                        panel_length=args.panel_length, resolution=args.resolution)

@@ -7,8 +7,10 @@ from pathlib import Path
 
 from gdfe import paper
 from gdfe._validation import GdfeError, check_int
-from gdfe.cli._common import (contact_fields, contact_text, emit, exit_status, process_arg, solve, solver_args,
-                               write_outputs)
+from gdfe.cli._common import (contact_fields, contact_text, emit, exit_status, iterations_text, json_arg, noting,
+                               out_arg, output_folder, process_arg, solve, solver_args, status_word, write_outputs)
+from gdfe.cli._progress import progress_mode
+from gdfe.mesh import DEFAULT_NZ
 
 __all__ = ["register", "run"]
 
@@ -27,17 +29,24 @@ def register(sub):
     p.add_argument("--width", type=float, default=0.5, help="strip width [mm] (default 0.5)")
     p.add_argument("--panel-length", type=float, default=1.0, help="length of each panel [mm]")
     p.add_argument("--cells", type=int, default=16, help="cells across the hinge (default 16)")
-    p.add_argument("--nz", type=int, default=1, help="cell layers through the film (default 1)")
+    p.add_argument("--nz", type=int, default=DEFAULT_NZ,
+                   help=f"cell layers through the film (default {DEFAULT_NZ}, as for every design)")
     p.add_argument("--isotropy", type=float, default=1.0,
                    help="transverse/longitudinal shrink: 1 isotropic (default), 0 uniaxial")
     process_arg(p)
     solver_args(p)
-    p.add_argument("--out", type=Path, help="write the VTU series, a PNG and result.json here")
-    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    out_arg(p, help="write the VTU series, a PNG and result.json into this folder")
+    json_arg(p)
     p.set_defaults(func=run)
 
 
 def run(args):
+    folder = output_folder(args.out, args)
+    with noting(folder):
+        return _run(args, folder)
+
+
+def _run(args, folder):
     import gdfe
 
     if args.d is None and args.R is None:
@@ -59,8 +68,9 @@ def run(args):
         if args.d is not None else None,
         "alpha_eq2_rad": float(gdfe.angle_from_ratio(R, args.length, args.h)),
         "R": R, "K": K if args.R is None else None, "L_mm": args.length, "d_mm": args.d, "h_mm": args.h,
-        "width_mm": args.width, "isotropy": args.isotropy,
-        "iterations": res.iterations, "converged": res.converged, "residual": res.residual,
+        "width_mm": args.width, "isotropy": args.isotropy, "nz": args.nz, "status": status_word(res),
+        "iterations": res.iterations, "frame_iterations": list(res.frame_iterations), "converged": res.converged,
+        "residual": res.residual,
         "seconds": res.seconds, "n_elements": design.n_cells, "method": res.method,
     }
     if model is not None:
@@ -72,18 +82,20 @@ def run(args):
         ref = out["alpha_eq1_rad"] if out["alpha_eq1_rad"] is not None else out["alpha_eq2_rad"]
     out["error_rad"] = alpha - ref
     out.update(contact_fields(res))
-    if args.out:
+    if folder is not None:
         out["title"] = f"hinge L={args.length:g} mm, alpha={alpha:.4f} rad"
-        out["files"] = write_outputs(res, args.out, "hinge", out)
-    text = (f"hinge L={args.length:g} mm, d={args.d} mm, h={args.h:g} mm, R={R:.4f}\n"
+        with folder:
+            folder.status.update(converged=bool(res.converged), status=status_word(res))
+            out["files"] = write_outputs(res, args.out, "hinge", out, progress=progress_mode(args))
+    d_text = f"d={args.d:g} mm" if args.d is not None else "R given (no d)"
+    text = (f"hinge L={args.length:g} mm, {d_text}, h={args.h:g} mm, R={R:.4f}, nz={args.nz}\n"
             f"  GDFE fold angle  {alpha:.4f} rad ({math.degrees(alpha):.1f} deg)\n"
             + (f"  model {model.name}: closed form {out['alpha_model_rad']:.4f} rad (error {out['error_rad']:+.4f})\n"
                if model is not None else
                f"  Eq. 1            {out['alpha_eq1_rad']:.4f} rad (error {out['error_rad']:+.4f})\n"
                if out["alpha_eq1_rad"] is not None else "")
             + f"  Eq. 2 (1-R)L/h   {out['alpha_eq2_rad']:.4f} rad\n"
-            f"  {'converged' if res.converged else 'NOT CONVERGED'} in {res.iterations} iterations "
-            f"(residual {res.residual:.1e}), {res.seconds:.2f} s, {design.n_cells} elements\n"
+            f"  {iterations_text(res)}, residual {res.residual:.1e}, {res.seconds:.2f} s, {design.n_cells} elements\n"
             + contact_text(res)
             + (f"\n  wrote {args.out}/hinge.pvd (open in ParaView), hinge.png, result.json" if args.out else ""))
     emit(out, args.json, text)

@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 
-from gdfe.cli._common import emit, scheduler_arg, using_scheduler
+from gdfe.cli._common import emit, json_arg, noting, out_arg, output_folder, scheduler_arg, using_scheduler
 
 __all__ = ["register", "run"]
 
@@ -15,10 +14,10 @@ def register(sub):
     p = sub.add_parser("report", help="run every study and write an HTML validation report",
                        description="Run every study and write DIR/index.html with figures, paper-vs-ours "
                                    "numbers, regression tolerances and software versions.")
-    p.add_argument("--out", type=Path, required=True, help="output directory")
+    out_arg(p, required=True)
     p.add_argument("--resolution", choices=RESOLUTIONS, default="default")
     p.add_argument("--only", nargs="+", choices=list(STUDIES), metavar="NAME", help="run only these studies")
-    p.add_argument("--json", action="store_true", help="print the report's summary as JSON")
+    json_arg(p, "the report's summary")
     scheduler_arg(p)
     p.set_defaults(func=run)
 
@@ -28,7 +27,8 @@ def run(args):
     from studies.validation_report import build_report
 
     names = args.only or list(STUDIES)
-    with using_scheduler(args.scheduler):
+    folder = output_folder(args.out, args)
+    with noting(folder), using_scheduler(args.scheduler), folder:
         summary = build_report(args.out, resolution=args.resolution, names=names)
     lines = [f"wrote {summary['index']}"]
     for s in summary["studies"]:

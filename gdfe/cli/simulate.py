@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gdfe.cli._common import contact_text, emit, exit_status, process_arg, solve, solver_args, write_outputs
+from gdfe.cli._common import (contact_text, emit, exit_status, iterations_text, json_arg, noting, out_arg,
+                               output_folder, process_arg, solve, solver_args, status_word, write_outputs)
+from gdfe.cli._progress import progress_mode
 
 __all__ = ["register", "run"]
 
@@ -13,7 +15,7 @@ def register(sub):
     p = sub.add_parser("simulate", help="simulate a design file (TOML)",
                        description="Simulate a TOML design; write a VTU series, a PNG and a JSON summary.")
     p.add_argument("design", type=Path, help="design file (.toml), or a drawing (.svg, .fold)")
-    p.add_argument("--out", type=Path, required=True, help="output directory")
+    out_arg(p, required=True)
     p.add_argument("--model", type=Path, default=None,
                    help="deformation model file (TOML) replacing the design's own (its cells' R from their d)")
     process_arg(p)
@@ -24,7 +26,7 @@ def register(sub):
                         "package of masks (zip)")
     p.add_argument("--export-frame", type=int, default=-1, metavar="K",
                    help="frame of the ramp to export as STL/OBJ/PLY (default -1: the folded shape; 0: flat)")
-    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    json_arg(p, "the summary")
     p.set_defaults(func=run)
 
 
@@ -42,29 +44,80 @@ def _export_formats(text):
 
 
 def run(args):
+    folder = output_folder(args.out, args)
+    with noting(folder):
+        return _run(args, folder)
+
+
+def _measured(res, design):
+    """The fold angles measured on the result: of a hinge specimen, of a FOLD file's creases, or
+    between the rigid panels its contracting cells join (:func:`gdfe.measure.panel_angles`)."""
+    import gdfe
+    from gdfe.measure import panel_angles
+
+    if "panel_a" in design.regions and "panel_b" in design.regions:
+        return {"fold_angle_rad": gdfe.fold_angle(res)}
+    if design.meta.get("kind") == "fold" and design.meta.get("hinges") is not None:
+        from gdfe.fabrication import crease_angles
+
+        return {"crease_angles": crease_angles(res)}
+    return {"panel_angles": panel_angles(res)}
+
+
+def _angles_text(summary):
+    if "fold_angle_rad" in summary:
+        return f"  fold angle {summary['fold_angle_rad']:.4f} rad\n"
+    rows = summary.get("crease_angles")
+    if rows is not None:
+        label, key = "crease", "edge"
+    else:
+        rows, label, key = summary.get("panel_angles", []), "panels", "panels"
+    if not rows:
+        return "  fold angles: none measured (no two rigid panels joined by contracting cells)\n"
+    shown = ", ".join(f"{label} {'-'.join(map(str, r[key])) if isinstance(r[key], list) else r[key]}: "
+                      f"{r['angle_rad']:.4f} rad" for r in rows[:8])
+    more = f" and {len(rows) - 8} more (in result.json)" if len(rows) > 8 else ""
+    return f"  fold angles ({len(rows)}) {shown}{more}\n"
+
+
+def _film_text(design):
+    s = design.summary()
+    if s.get("d_mm") is not None:
+        d = f"d = {s['d_mm']:g} mm"
+    elif "d_mm_range" in s:
+        lo, hi = s["d_mm_range"]
+        d = f"d = {lo:g} mm" if lo == hi else f"d = {lo:g}-{hi:g} mm"
+    else:
+        d = "R given (no d)"
+    return f"  film h = {design.h:g} mm, {d}, nz = {int(design.mesh.cell_k.max()) + 1}\n"
+
+
+def _run(args, folder):
     import gdfe
 
     design, options = gdfe.load_design(args.design, model=args.model, process=args.process)
-    res = solve(design, args, options)
-    summary = {"design": str(args.design), **design.summary(), **res.summary()}
+    res = solve(design, args, options, source=args.design.name)
+    summary = {"design": str(args.design), **design.summary(), **res.summary(), "status": status_word(res),
+               "frame_iterations": list(res.frame_iterations), "nz": int(design.mesh.cell_k.max()) + 1}
     if design.model is not None:
         summary["model"] = design.model.as_dict()
-    if "panel_a" in design.regions and "panel_b" in design.regions:
-        summary["fold_angle_rad"] = gdfe.fold_angle(res)
+    summary.update(_measured(res, design))
     summary["bbox_mm"] = [res.points.min(0).tolist(), res.points.max(0).tolist()]
     summary["title"] = f"{args.design.stem}: {design.n_cells} elements"
     exported = {}
-    if args.export and res.converged:  # a shape that is not an equilibrium is not exported
-        from gdfe.fabrication import export_result
+    with folder:
+        folder.status.update(converged=bool(res.converged), status=status_word(res))
+        if args.export and res.converged:  # a shape that is not an equilibrium is not exported
+            from gdfe.fabrication import export_result
 
-        exported = export_result(res, args.out, args.design.stem, args.export, frame=args.export_frame)
-        summary["exported"] = {k: str(v) for k, v in exported.items()}
-    summary["files"] = write_outputs(res, args.out, args.design.stem, summary)
-    text = (f"{args.design}: {design.n_cells} elements, "
-            f"{'converged' if res.converged else 'NOT CONVERGED'} in {res.iterations} iterations "
-            f"(residual {res.residual:.1e}), {res.seconds:.2f} s\n"
+            exported = export_result(res, args.out, args.design.stem, args.export, frame=args.export_frame)
+            summary["exported"] = {k: str(v) for k, v in exported.items()}
+        summary["files"] = write_outputs(res, args.out, args.design.stem, summary, progress=progress_mode(args))
+    text = (f"{args.design}: {design.n_cells} elements, {iterations_text(res)}, residual {res.residual:.1e}, "
+            f"{res.seconds:.2f} s\n"
+            + _film_text(design)
             + (design.model.text() + "\n" if design.model is not None else "")
-            + (f"  fold angle {summary['fold_angle_rad']:.4f} rad\n" if "fold_angle_rad" in summary else "")
+            + _angles_text(summary)
             + f"  wrote {summary['files']['pvd']} (open in ParaView), {summary['files']['png']}, "
             f"{summary['files']['json']}"
             + (f"\n  exported {', '.join(str(v) for v in exported.values())}" if exported else "")

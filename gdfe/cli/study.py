@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from gdfe._validation import GdfeError
-from gdfe.cli._common import emit, scheduler_arg, using_scheduler
+from gdfe.cli._common import emit, json_arg, noting, out_arg, output_folder, scheduler_arg, using_scheduler
 
 __all__ = ["register", "run"]
 
@@ -16,9 +16,9 @@ def register(sub):
     p = sub.add_parser("study", help="run one study of a paper figure (writes a PNG and a JSON)",
                        description="Run one study: " + ", ".join(STUDIES) + ".")
     p.add_argument("name", choices=list(STUDIES), metavar="NAME", help="study: " + ", ".join(STUDIES))
-    p.add_argument("--out", type=Path, default=None, help="output directory (default out/NAME)")
+    out_arg(p, help="output folder (default out/NAME)")
     p.add_argument("--resolution", choices=RESOLUTIONS, default="default")
-    p.add_argument("--json", action="store_true", help="print the numbers as JSON")
+    json_arg(p, "the numbers")
     scheduler_arg(p)
     p.set_defaults(func=run)
 
@@ -32,7 +32,8 @@ def run(args):
     except ModuleNotFoundError as exc:  # a study needing an extra that is not installed
         raise GdfeError(f"study {args.name} ({studies.STUDIES[args.name]}) is not available: {exc}") from None
     out = args.out if args.out is not None else Path("out") / args.name
-    with using_scheduler(args.scheduler):
+    folder = output_folder(out, args)
+    with noting(folder), using_scheduler(args.scheduler), folder:
         if not hasattr(module, "NAME"):  # a study without the shared plumbing
             result = module.run(resolution=args.resolution, out=out)
             emit(result, args.json, f"{args.name}: wrote {out}")

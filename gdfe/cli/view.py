@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from gdfe._validation import GdfeError
-from gdfe.cli._common import emit
+from gdfe.cli._common import emit, json_arg
 
 __all__ = ["register", "run"]
 
@@ -19,11 +19,17 @@ def register(sub):
     p.add_argument("--html", nargs="?", const=True, default=None, metavar="PATH",
                    help="write the page (default RESULT_DIR/NAME.html)")
     p.add_argument("--title", help="page title (default the series' name)")
-    p.add_argument("--json", action="store_true", help="print what was read and written as JSON")
+    json_arg(p, "what was read and written")
     p.set_defaults(func=run)
 
 
 def _series(path):
+    from gdfe.io import MARKER, folder_state
+
+    folder = path.parent if path.is_file() else path
+    if folder_state(folder) == "incomplete":
+        raise GdfeError(f"result: {folder} is incomplete ({MARKER}: the run that wrote it did not finish); "
+                        "rerun it")
     if path.is_file():
         return path
     if not path.is_dir():

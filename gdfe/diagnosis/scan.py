@@ -17,7 +17,7 @@ import logging
 
 import numpy as np
 
-from gdfe._validation import GdfeError, check_file
+from gdfe._validation import GdfeError, check_file, read_text
 
 __all__ = ["load_measured", "MEASURED_SUFFIXES"]
 
@@ -93,10 +93,10 @@ def _read_csv(path):
     """Points of a CSV file: columns x, y, z (by a header's names, else the first three)."""
     import csv
 
+    text = read_text(path, "text file of comma-separated x, y, z")
     try:
-        with path.open(newline="") as f:
-            rows = [r for r in csv.reader(f) if r and any(c.strip() for c in r)]
-    except (UnicodeDecodeError, csv.Error) as exc:
+        rows = [r for r in csv.reader(io.StringIO(text, newline="")) if r and any(c.strip() for c in r)]
+    except csv.Error as exc:
         raise GdfeError(f"{path.name}: expected a text file of comma-separated x, y, z, got "
                         f"{type(exc).__name__}: {exc}") from None
     if not rows:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from gdfe._validation import GdfeError, check_positive, check_ratio
+from gdfe._validation import GdfeError, check_positive, check_ratio, read_text
 
 
 def film_ratio(h=None, R=None, d=None, K=None):
@@ -29,7 +29,6 @@ def load_toml(path):
         import tomli as tomllib
 
     try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
+        return tomllib.loads(read_text(path, "TOML file"))
     except tomllib.TOMLDecodeError as exc:
         raise GdfeError(f"{path.name}: not valid TOML: {exc}") from None

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gdfe._validation import GdfeError, check_positive
+from gdfe._validation import GdfeError, check_keys, check_positive
 from gdfe.fabrication.fold import fold_masks, read_fold
 from gdfe.fabrication.svg import svg_masks
 
@@ -86,9 +86,7 @@ def drawing_design(kind, spec, toml_path, make):
     name = toml_path.name
     if not isinstance(spec, dict):
         raise GdfeError(f"{name}: [{kind}]: expected a table")
-    unknown = set(spec) - set(DRAWING_KEYS[kind])
-    if unknown:
-        raise GdfeError(f"{name}: [{kind}] has unknown key(s) {sorted(unknown)}; expected {list(DRAWING_KEYS[kind])}")
+    check_keys(f"{name}: [{kind}]", spec, DRAWING_KEYS[kind])
     if not isinstance(spec.get("file"), str):
         raise GdfeError(f"{name}: [{kind}] file: expected the path of the drawing, got {spec.get('file')!r}")
     src = toml_path.parent / spec["file"]

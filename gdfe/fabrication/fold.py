@@ -41,7 +41,7 @@ import math
 
 import numpy as np
 
-from gdfe._validation import GdfeError, check_file, check_positive, is_finite_number
+from gdfe._validation import GdfeError, check_file, check_positive, is_finite_number, read_text
 
 __all__ = ["CreasePattern", "FoldMasks", "read_fold", "fold_masks", "UNITS_MM", "ASSIGNMENTS"]
 
@@ -159,9 +159,7 @@ def read_fold(path, scale=None):
     path = check_file("fold", path, suffixes=(".fold",), what="FOLD file")
     name = path.name
     try:
-        doc = json.loads(path.read_text())
-    except UnicodeDecodeError:
-        raise GdfeError(f"{name}: not a text (JSON) file") from None
+        doc = json.loads(read_text(path, "FOLD (JSON) file"))
     except json.JSONDecodeError as exc:
         raise GdfeError(f"{name}: not valid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}") from None
     if not isinstance(doc, dict):

@@ -145,7 +145,8 @@ def write_mask_png(path, mask, pixel):
 
 
 def read_mask_png(path):
-    """Read a mask PNG: ``(mask, pixel)``, ``mask[i, j]`` True where the pixel is dark.
+    """Read a mask PNG: ``(mask, pixel)``, ``mask[i, j]`` True where the pixel is dark (and opaque),
+    at any bit depth and mode (:mod:`gdfe._images`).
 
     Returns
     -------
@@ -153,21 +154,16 @@ def read_mask_png(path):
     pixel : float [mm] or None
         From the file's resolution; None when the file has none.
     """
-    from PIL import Image, UnidentifiedImageError
+    from gdfe._images import read_mask_image
 
     path = check_file("mask", path, suffixes=(".png",), what="mask image")
-    try:
-        with Image.open(path) as img:
-            arr = np.asarray(img.convert("L"), float) < 128
-            dpi = img.info.get("dpi")
-    except (UnidentifiedImageError, OSError) as exc:
-        raise GdfeError(f"{path.name}: not a readable PNG image ({exc})") from None
+    arr, dpi = read_mask_image("mask", path)
     pixel = None
     if dpi and float(dpi[0]) > 0:
         if not math.isclose(float(dpi[0]), float(dpi[1]), rel_tol=1e-3):
             raise GdfeError(f"{path.name}: expected square pixels, got {dpi[0]:g} x {dpi[1]:g} DPI")
         pixel = MM_PER_INCH / float(dpi[0])
-    return arr[::-1].T.copy(), pixel
+    return arr, pixel
 
 
 def write_masks(masks, out_dir, name):

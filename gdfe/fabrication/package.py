@@ -187,10 +187,9 @@ def read_print_package(path):
                 Calibration(**({"K": film["K"]} if "K" in film else {}), h=film["h"]).ratio(film["d"]))
 
             def img(key):
-                from PIL import Image
+                from gdfe._images import read_mask_image
 
-                with Image.open(io.BytesIO(zf.read(fl[key]))) as im:
-                    return np.asarray(im.convert("L"), float)[::-1].T < 128
+                return read_mask_image(path.name, io.BytesIO(zf.read(fl[key])), label=fl[key])[0]
 
             des = from_masks(img("top"), img("bottom"), info["pixel_mm"], R, h=film["h"], nz=film.get("nz", 1),
                              isotropy=film.get("isotropy", 1.0), film=img("film") if "film" in fl else None)

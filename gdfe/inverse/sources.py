@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gdfe._validation import GdfeError, check_file
+from gdfe._validation import GdfeError, check_file, check_keys, read_text
 
 __all__ = ["CouplesFile", "read_couples_toml", "read_sketch_csv", "read_sketch", "FILM_KEYS", "PRINT_KEYS"]
 
@@ -57,9 +57,7 @@ def _table(doc, key, known, name):
     t = doc.get(key, {})
     if not isinstance(t, dict):
         raise GdfeError(f"{name}: {key}: expected a table [{key}], got {type(t).__name__}")
-    unknown = set(t) - set(known)
-    if unknown:
-        raise GdfeError(f"{name}: [{key}] has unknown key(s) {sorted(unknown)}; expected {list(known)}")
+    check_keys(f"{name}: [{key}]", t, known)
     for k, v in t.items():
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             raise GdfeError(f"{name}: [{key}] {k}: expected a number, got {v!r}")
@@ -79,10 +77,7 @@ def read_couples_toml(path):
     path = check_file("couples", path, suffixes=(".toml",), what="couples file")
     name = path.name
     doc = load_toml(path)
-    known = {"name", "heading", "start", "couples", "turns", "film", "print"}
-    unknown = set(doc) - known
-    if unknown:
-        raise GdfeError(f"{name}: unknown key(s) {sorted(unknown)}; expected {sorted(known)}")
+    check_keys(name, doc, ("name", "heading", "start", "couples", "turns", "film", "print"))
     if "couples" not in doc:
         raise GdfeError(f"{name}: missing 'couples' (a list of [L, r] pairs in mm)")
     couples = doc["couples"]
@@ -113,8 +108,10 @@ def read_sketch_csv(path):
     (n, 2) float array [mm]
     """
     path = check_file("sketch", path, suffixes=(".csv", ".txt"), what="sketch CSV")
+    text = read_text(path, "sketch CSV")
+    first = _first_content_line(text)
     rows = []
-    for k, raw in enumerate(path.read_text().splitlines(), start=1):
+    for k, raw in enumerate(text.splitlines(), start=1):
         line = raw.split("#", 1)[0].strip()
         if not line:
             continue
@@ -122,7 +119,7 @@ def read_sketch_csv(path):
         try:
             xy = [float(p) for p in parts]
         except ValueError:
-            if not rows and k == _first_content_line(path):
+            if not rows and k == first:
                 continue  # a header
             raise GdfeError(f"{path.name} line {k}: expected two numbers x, y [mm], got {raw.strip()!r}") from None
         if len(xy) != 2 or not np.all(np.isfinite(xy)):
@@ -133,8 +130,8 @@ def read_sketch_csv(path):
     return np.array(rows)
 
 
-def _first_content_line(path):
-    for k, raw in enumerate(path.read_text().splitlines(), start=1):
+def _first_content_line(text):
+    for k, raw in enumerate(text.splitlines(), start=1):
         if raw.split("#", 1)[0].strip():
             return k
     return 0

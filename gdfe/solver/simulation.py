@@ -16,6 +16,7 @@ import numpy as np
 from gdfe._validation import GdfeError, check_array, check_choice, check_instance, check_int, check_positive
 from gdfe.design import Design
 from gdfe.model import as_model
+from gdfe.resources import check_run
 from gdfe.solver.contact import CONTACT_MODES, Contact, ContactReport, contact_available
 from gdfe.solver.methods import METHODS, Solver, auto_method, check_tol
 from gdfe.solver.newton import ON_DRIFT, STEP_TOL_FACTOR
@@ -291,6 +292,7 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
         start = check_array("init", init, shape=design.mesh.points.shape)
         init = "given"
     steps = check_int("steps", steps)
+    check_run(design, steps)  # a run whose memory estimate exceeds the machine's is refused (gdfe.resources)
     if max_iter is None:
         max_iter = 200 if method.startswith("newton") else 5000
     max_iter = check_int("max_iter", max_iter)

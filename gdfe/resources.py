@@ -1,0 +1,171 @@
+"""What a design or a simulation will cost before it starts: cells, memory and time, against the machine.
+
+A design's mesh takes about :data:`MESH_BYTES_PER_CELL` per cell; a simulation's peak memory
+grows by about :data:`SOLVE_BYTES_PER_CELL` per cell over a base of :data:`BASE_BYTES`, plus
+the frames it keeps; its time per frame follows a power law in the cell count
+(:data:`SECONDS_AT`, :data:`TIME_EXPONENTS`). The constants are fitted to the benchmark's
+measurements on 2 cores (``gdfe bench``; its last results and the stopped 10^6-cell run are in
+``docs/bench/bench.txt`` and the README): they are estimates, good to a factor of 2-3
+(thin cells, ``nz`` large, converge more slowly), meant to decide before a run whether it
+fits the machine and whether it is long enough to ask first.
+
+:func:`check_design_cells` refuses a design whose mesh alone would not fit in memory;
+:func:`check_run` refuses a simulation whose estimate does not (both raise
+:class:`gdfe.GdfeError` with the estimate); :attr:`Estimate.large` says when a run is long
+or takes most of the memory, which the command line runs only when asked (``--large``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+
+from gdfe._validation import GdfeError
+
+__all__ = ["Estimate", "estimate_run", "machine_memory", "check_design_cells", "check_run", "format_bytes",
+           "format_seconds", "LARGE_SECONDS", "LARGE_MEMORY_FRACTION"]
+
+#: Bytes per cell of a design's mesh and cell data (points, hexahedra, indices, materials).
+MESH_BYTES_PER_CELL = 600
+#: Peak memory of a solve: a base (the interpreter, numpy, scipy) and bytes per cell (the
+#: factorised systems, the Hessian, the batched SVDs) - 100 MiB at 10^3 cells, 1.1 GiB at 10^5.
+BASE_BYTES = 100 * 2**20
+SOLVE_BYTES_PER_CELL = 11_000
+#: Seconds of one frame at 10^4 cells, and the exponent of the time against the cell count below
+#: and above 10^5 cells (1.2: 4.2 s at 10^4, 73 s at 10^5; at 10^6 a run took over 78 minutes).
+SECONDS_AT = (1e4, 4.2)
+TIME_EXPONENTS = ((1e5, 1.24), (float("inf"), 1.8))
+#: Seconds every frame costs whatever its size (set-up, the penetration check, Python).
+FRAME_OVERHEAD_SECONDS = 0.02
+#: A run estimated to take longer than this, or more than this fraction of the machine's memory,
+#: is *large*: the command line asks for ``--large`` before it starts one.
+LARGE_SECONDS = 600.0
+LARGE_MEMORY_FRACTION = 0.5
+
+
+def machine_memory():
+    """The machine's physical memory in bytes (None where it cannot be read)."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
+def format_bytes(n) -> str:
+    """``n`` bytes as ``12 MiB``, ``3.4 GiB``, ..."""
+    n = float(n)
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB"):
+        if n < 1024 or unit == "PiB":
+            return f"{n:.0f} {unit}" if unit in ("B", "KiB", "MiB") else f"{n:.3g} {unit}"
+        n /= 1024
+
+
+def format_seconds(s) -> str:
+    """Seconds as ``0.4 s``, ``12 min``, ``3.1 h``, ``5 days``."""
+    s = float(s)
+    if s < 60:
+        return f"{s:.2g} s"
+    if s < 3600:
+        return f"{s / 60:.2g} min"
+    if s < 86400 * 2:
+        return f"{s / 3600:.2g} h"
+    return f"{s / 86400:.3g} days"
+
+
+def _frame_seconds(cells):
+    n0, t0 = SECONDS_AT
+    t, n_from = t0, n0
+    for n_to, exponent in TIME_EXPONENTS:
+        if cells <= n_to:
+            return t * (cells / n_from) ** exponent + FRAME_OVERHEAD_SECONDS
+        t *= (n_to / n_from) ** exponent
+        n_from = n_to
+    return t  # pragma: no cover
+
+
+@dataclasses.dataclass(frozen=True)
+class Estimate:
+    """The estimated cost of simulating a design.
+
+    Attributes
+    ----------
+    cells : int
+    frames : int
+        Frames solved (the contraction ramp's ``steps``).
+    memory_bytes : float
+        Peak memory.
+    seconds : float
+        Wall-clock time on 2 cores like the benchmark's.
+    machine_bytes : int or None
+        The machine's physical memory.
+    """
+
+    cells: int
+    frames: int
+    memory_bytes: float
+    seconds: float
+    machine_bytes: int | None
+
+    @property
+    def fits(self) -> bool:
+        """Whether the estimated memory is within the machine's."""
+        return self.machine_bytes is None or self.memory_bytes <= self.machine_bytes
+
+    @property
+    def large(self) -> bool:
+        """Long (over :data:`LARGE_SECONDS`) or using more than :data:`LARGE_MEMORY_FRACTION` of the memory."""
+        return self.seconds > LARGE_SECONDS or (self.machine_bytes is not None and
+                                                self.memory_bytes > LARGE_MEMORY_FRACTION * self.machine_bytes)
+
+    def text(self) -> str:
+        machine = "" if self.machine_bytes is None else f" (this machine has {format_bytes(self.machine_bytes)})"
+        frames = f" x {self.frames} frames" if self.frames > 1 else ""
+        return (f"{self.cells:,} cells{frames}: about {format_seconds(self.seconds)} and "
+                f"{format_bytes(self.memory_bytes)} of memory{machine}")
+
+    def as_dict(self) -> dict:
+        return {"cells": self.cells, "frames": self.frames, "memory_bytes": float(self.memory_bytes),
+                "seconds": float(self.seconds), "machine_bytes": self.machine_bytes}
+
+
+def estimate_run(cells, frames=1, points=None) -> Estimate:
+    """The estimated memory and time of simulating ``cells`` cells over ``frames`` frames.
+
+    Parameters
+    ----------
+    cells : int
+    frames : int
+        The ramp's ``steps``; every frame is kept (``points`` x 3 floats each).
+    points : int, optional
+        Vertices of the design (default: about 2 per cell, a one-layer sheet).
+    """
+    cells, frames = int(cells), int(frames)
+    points = 2 * cells if points is None else int(points)
+    memory = BASE_BYTES + SOLVE_BYTES_PER_CELL * cells + (frames + 1) * points * 3 * 8
+    return Estimate(cells=cells, frames=frames, memory_bytes=float(memory),
+                    seconds=frames * _frame_seconds(cells), machine_bytes=machine_memory())
+
+
+def check_design_cells(name, cells):
+    """Refuse a design of ``cells`` cells whose mesh alone would not fit in the machine's memory."""
+    machine = machine_memory()
+    need = float(cells) * MESH_BYTES_PER_CELL
+    if machine is not None and need > machine:
+        raise GdfeError(f"{name}: expected a design that fits in memory, got {float(cells):.3g} cells, whose mesh "
+                        f"alone needs about {format_bytes(need)} (this machine has {format_bytes(machine)}); "
+                        f"use larger cells (pixel, cell_size) or fewer layers (nz)")
+    return int(cells)
+
+
+def check_run(design, steps):
+    """Refuse a simulation of ``design`` over ``steps`` frames whose memory estimate exceeds the machine's.
+
+    Returns
+    -------
+    Estimate
+    """
+    est = estimate_run(design.n_cells, steps, design.mesh.n_points)
+    if not est.fits:
+        raise GdfeError(f"design, steps: expected a simulation that fits in memory, got {est.text()}; "
+                        f"use a coarser design or fewer steps")
+    return est
