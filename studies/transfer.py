@@ -43,6 +43,10 @@ GOAL = 0.13
 #: Whether the goal is met (measured by this study; see its JSON): the regression checks expect
 #: what was measured, so a change either way is flagged.
 GOAL_MET = False
+#: Whether the goal holds for the model family chosen on all tests and refitted fold by fold
+#: (measured by this study): what the simulator loses against the closed form, without the
+#: variance of choosing the model again in every fold.
+FAMILY_GOAL_MET = True
 #: Resolution of each part study's designs (the part studies' own presets).
 PARTS = {"coarse": "coarse", "default": "coarse", "fine": "default"}
 
@@ -66,7 +70,7 @@ def _fold(job):
     import gdfe
     from gdfe.diagnosis import diagnose
 
-    i, cells, out = job
+    i, cells, out, family = job
     tests = gdfe.load_folding_tests(gdfe.TABLE1)
     n = len(tests)
     keep = np.arange(n) != i
@@ -83,12 +87,18 @@ def _fold(job):
     res = gdfe.simulate(_specimen(L, d, h, model, cells))
     refit = gdfe.paper_model(gdfe.fit_reading(sub, "eq1", n_boot=0).K)
     res_k = gdfe.simulate(gdfe.hinge(L, d=d, h=h, model=refit, cell_size=_cell(L, cells)))
+    # the model family chosen on all 18 tests, its parameters refitted to these 17
+    fixed_fit = next(f for f in diag.fits if f.name == family)
+    fixed = gdfe.DeformationModel.from_effect_fit(fixed_fit, n_tests=n - 1)
+    res_f = gdfe.simulate(_specimen(L, d, h, fixed, cells))
     return {"test": i + 1, "L_mm": L, "d_mm": d, "h_mm": h, "measured_rad": float(tests.alpha[i]),
             "model": model.name, "params": {k: p.value for k, p in model.params.items()},
             "warnings": len(model.warnings),
             "closed_form_rad": float(model.hinge_angle(L, d, h)),
             "gdfe_rad": float(gdfe.fold_angle(res)), "gdfe_converged": bool(res.converged),
             "refit_K_gdfe_rad": float(gdfe.fold_angle(res_k)), "refit_K_converged": bool(res_k.converged),
+            "family_gdfe_rad": float(gdfe.fold_angle(res_f)), "family_converged": bool(res_f.converged),
+            "family_closed_form_rad": float(fixed.hinge_angle(L, d, h)),
             "n_cells": int(res.design.n_cells)}
 
 
@@ -100,19 +110,22 @@ def held_out(resolution, out=None):
 
     n = len(gdfe.load_folding_tests(gdfe.TABLE1))
     cells = CELLS[resolution]
-    rows = parallel_map(_fold, [(i, cells, None if out is None else str(out)) for i in range(n)],
+    full = diagnose(gdfe.TABLE1, check=None)
+    family = full.best.name
+    rows = parallel_map(_fold, [(i, cells, None if out is None else str(out), family) for i in range(n)],
                         n_jobs=n_jobs(resolution), desc="transfer: Table 1 folds")
     y = np.array([r["measured_rad"] for r in rows])
 
     def rmse(key):
         return float(np.sqrt(np.mean((np.array([r[key] for r in rows]) - y) ** 2)))
 
-    full = diagnose(gdfe.TABLE1, check=None)
     return {"rows": rows, "rmse_gdfe_rad": rmse("gdfe_rad"), "rmse_closed_form_nested_rad": rmse("closed_form_rad"),
-            "rmse_refit_K_gdfe_rad": rmse("refit_K_gdfe_rad"),
+            "rmse_refit_K_gdfe_rad": rmse("refit_K_gdfe_rad"), "family": family,
+            "rmse_family_gdfe_rad": rmse("family_gdfe_rad"), "rmse_family_closed_form_rad": rmse("family_closed_form_rad"),
             "diagnosis_best": full.best.name, "diagnosis_loo_rmse_rad": float(full.best.loo_rmse),
             "models_chosen": {m: sum(r["model"] == m for r in rows) for m in sorted({r["model"] for r in rows})},
-            "converged": all(r["gdfe_converged"] and r["refit_K_converged"] for r in rows), "cells": cells}
+            "converged": all(r["gdfe_converged"] and r["refit_K_converged"] and r["family_converged"] for r in rows),
+            "cells": cells}
 
 
 def _fem_held_out():
@@ -261,6 +274,11 @@ def run(resolution="default", out=None):
                  ho["rmse_closed_form_nested_rad"], None, GOAL, "le", unit="rad", expect=GOAL_MET,
                  note="the diagnosis's own held-out RMSE of its chosen model, "
                       f"{ho['diagnosis_loo_rmse_rad']:.3f} rad, chooses the model on all 18 tests first"),
+        headline(f"the model family chosen on all 18 tests ({ho['family']}), refitted per fold, through GDFE",
+                 ho["rmse_family_gdfe_rad"], None, GOAL, "le", unit="rad", expect=FAMILY_GOAL_MET,
+                 note=f"the family's closed form held out the same way: {ho['rmse_family_closed_form_rad']:.3f} rad "
+                      f"(the diagnosis's own figure, {ho['diagnosis_loo_rmse_rad']:.3f} rad); the choice of the "
+                      "family saw the held-out test, so this is optimistic beside the line above"),
         headline("GDFE with only K refitted, held out", ho["rmse_refit_K_gdfe_rad"], None, GOAL, "le", unit="rad",
                  expect=False, note="Eq. 3 refitted fold by fold: what the paper's principle can do"),
         headline("largest |GDFE - closed form| of a held-out specimen",
@@ -281,7 +299,8 @@ def run(resolution="default", out=None):
     summary = {
         "paper": "K = 0.3706 calibrated on Table 1 and used for every part; no held-out error",
         "ours": (f"held out through GDFE: {ho['rmse_gdfe_rad']:.3f} rad (closed form nested "
-                 f"{ho['rmse_closed_form_nested_rad']:.3f}, diagnosis LOO of its chosen model "
+                 f"{ho['rmse_closed_form_nested_rad']:.3f}; the family {ho['family']} refitted per fold "
+                 f"{ho['rmse_family_gdfe_rad']:.3f}, diagnosis LOO of its chosen model "
                  f"{ho['diagnosis_loo_rmse_rad']:.3f}), K refitted {ho['rmse_refit_K_gdfe_rad']:.3f}, FEM "
                  + (f"{fem['loo_rmse_rad']:.3f}" if "loo_rmse_rad" in fem else "not run")
                  + f" rad; Table 1 model {model.name}: tube turn {tube['paper_turn_rad']:.2f} -> "
@@ -307,6 +326,7 @@ def plot(result, out):
     y = np.array([r["measured_rad"] for r in rows])
     a = ax[0]
     for key, label, mk in (("gdfe_rad", "GDFE + diagnosed model", "o"), ("closed_form_rad", "closed form", "x"),
+                           ("family_gdfe_rad", "GDFE + the all-data family, refitted", "^"),
                            ("refit_K_gdfe_rad", "GDFE, K refitted", "s")):
         a.scatter(y, [r[key] for r in rows], marker=mk, label=label, zorder=3)
     lim = [0, max(3.0, float(y.max()) * 1.1)]

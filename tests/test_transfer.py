@@ -24,6 +24,12 @@ def test_every_held_out_specimen_is_simulated_with_its_own_model(result, tmp_pat
         assert r["gdfe_rad"] == pytest.approx(r["closed_form_rad"], abs=0.02), r
     # so the held-out error through the simulator is that of the closed form, to the same margin
     assert ho["rmse_gdfe_rad"] == pytest.approx(ho["rmse_closed_form_nested_rad"], abs=0.01)
+    # the family chosen on all tests, refitted per fold: through GDFE as its closed form, and that
+    # closed form is the diagnosis's own held-out error of its best model (same fits, same folds)
+    for r in ho["rows"]:
+        assert r["family_gdfe_rad"] == pytest.approx(r["family_closed_form_rad"], abs=0.02), r
+    assert ho["rmse_family_closed_form_rad"] == pytest.approx(ho["diagnosis_loo_rmse_rad"], rel=1e-6)
+    assert ho["rmse_family_gdfe_rad"] == pytest.approx(ho["rmse_family_closed_form_rad"], abs=0.01)
     # and both are far below the paper's principle refitted (Eq. 3 with K: 0.51 rad held out)
     assert ho["rmse_gdfe_rad"] < 0.6 * ho["rmse_refit_K_gdfe_rad"]
 
