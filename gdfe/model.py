@@ -704,6 +704,8 @@ def load_model(path):
     params = doc["parameters"]
     if not isinstance(params, dict):
         raise GdfeError(f"{name}: parameters: expected a table, got {describe(params)}")
+    needed = [*PRINCIPLES[principle].params, *(p for m in mech for p in MECHANISMS[m].params)]
+    _unknown(f"{name}: [parameters]", {k: v for k, v in params.items() if not k.startswith("scale[")}, needed)
     parsed = {}
     for k, spec in params.items():
         where = f"{name}: parameters.{k}"

@@ -161,7 +161,10 @@ def test_model_file_round_trip(tmp_path):
 
 
 @pytest.mark.parametrize("body, match", [
-    ('principle = "eq1"\n[parameters]\nK = 0.3\nlamda = 1\n', r"m.toml: params: unexpected lamda"),
+    ('principle = "eq1"\n[parameters]\nK = 0.3\nlamda = 1\n',
+     r"m.toml: \[parameters\]: unknown key 'lamda'; expected some of K"),
+    ('principle = "eq1"\nmechanisms = ["cure_depth"]\n[parameters]\nK = 0.3\ndelt = 0.01\n',
+     r"m.toml: \[parameters\]: unknown key 'delt' \(did you mean 'delta'\?\)"),
     ('principle = "eq1"\nmechansims = []\n[parameters]\nK = 0.3\n',
      r"m.toml: unknown key 'mechansims' \(did you mean 'mechanisms'\?\)"),
     ('principle = "eq2"\n[parameters]\nK = 0.3\n', r"m.toml: principle: expected one of eq1, .*got 'eq2'"),
