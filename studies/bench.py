@@ -61,6 +61,7 @@ from pathlib import Path
 import numpy as np
 
 from gdfe._validation import GdfeError
+from gdfe.calibration import Calibration
 from gdfe.paper import FIG6_D, FIG6_LENGTHS, H
 from studies._common import error_against_finest, median_time
 
@@ -882,7 +883,7 @@ def format_table(res):
                      f"fitted {_fmt(fr['observed_order'], '.2f')} in element size); GDFE with R = {fc['gdfe_R']:.5f}: "
                      f"limit {gr['alpha_reference_rad']:.5f} rad (order {_fmt(gr['richardson_order'], '.2f')}; fitted "
                      f"{_fmt(gr['observed_order'], '.2f')} in cell size); GDFE with Eq. 3 (R = "
-                     f"{1 - 0.3706 * (H / FEM_HINGE[1]) ** 1.5:.4f}): limit {go['alpha_reference_rad']:.5f} rad")
+                     f"{float(Calibration().ratio(FEM_HINGE[1])):.4f}): limit {go['alpha_reference_rad']:.5f} rad")
     for name in ("gdfe", "gdfe_own_fold", "fem_nonlinear"):
         for r in fc.get(name, []):
             tag = " (reference only)" if r.get("reference_only") else ""
