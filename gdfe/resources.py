@@ -28,11 +28,12 @@ __all__ = ["Estimate", "estimate_run", "machine_memory", "check_design_cells", "
 #: Bytes per cell of a design's mesh and cell data (points, hexahedra, indices, materials).
 MESH_BYTES_PER_CELL = 600
 #: Peak memory of a solve: a base (the interpreter, numpy, scipy) and bytes per cell (the
-#: factorised systems, the Hessian, the batched SVDs) - 100 MiB at 10^3 cells, 1.1 GiB at 10^5.
+#: factorised systems, the Hessian, the batched SVDs), fitted to the benchmark's peak memory.
 BASE_BYTES = 100 * 2**20
 SOLVE_BYTES_PER_CELL = 11_000
 #: Seconds of one frame at 10^4 cells, and the exponent of the time against the cell count below
-#: and above 10^5 cells (1.2: 4.2 s at 10^4, 73 s at 10^5; at 10^6 a run took over 78 minutes).
+#: and above 10^5 cells, fitted to the benchmark's sheets (the measurements: docs/bench/bench.txt;
+#: the 10^6-cell run that did not finish: the README, "Large designs and speed").
 SECONDS_AT = (1e4, 4.2)
 TIME_EXPONENTS = ((1e5, 1.24), (float("inf"), 1.8))
 #: Seconds every frame costs whatever its size (set-up, the penetration check, Python).

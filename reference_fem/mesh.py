@@ -33,6 +33,7 @@ import numpy as np
 
 from gdfe import _validation as v
 from gdfe._validation import GdfeError
+from gdfe.paper import H as PAPER_H
 
 __all__ = ["Segment", "LayeredStrip", "layered_strip", "hinge_mesh", "strip_mesh",
            "HINGE_RESOLUTIONS", "BOTTOM_COAT", "FILM", "TOP_COAT"]
@@ -225,7 +226,7 @@ HINGE_RESOLUTIONS = {
 }
 
 
-def hinge_mesh(length, d, h=0.29, *, panel_length=2.0, width=1.0, free_face="top",
+def hinge_mesh(length, d, h=PAPER_H, *, panel_length=2.0, width=1.0, free_face="top",
                resolution="default", element_size=None, layers_per_ply=None, junction_size=None,
                z_ratio=None) -> LayeredStrip:
     """The paper's folding specimen: two sandwich panels joined by a hinge coated on one face.

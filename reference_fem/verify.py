@@ -30,6 +30,7 @@ from .material import BilayerMaterial
 from .measure import curvature, fit_circle, midline, turning_angle
 from .mesh import strip_mesh
 from .solve import solve_linear, solve_nonlinear
+from gdfe.paper import FIG6_D, H
 from gdfe.timoshenko import timoshenko_curvature
 
 __all__ = ["timoshenko_check", "arc_check", "TIMOSHENKO_MESHES"]
@@ -41,7 +42,7 @@ TIMOSHENKO_MESHES = {
 }
 
 
-def timoshenko_check(element="hex1", meshes=None, *, length=6.0, width=1.0, h=0.29, d=0.33,
+def timoshenko_check(element="hex1", meshes=None, *, length=6.0, width=1.0, h=H, d=FIG6_D,
                      E_ratio=0.5):
     """FEM curvature of a free bilayer strip against Timoshenko on a sequence of meshes.
 
@@ -91,7 +92,7 @@ def timoshenko_check(element="hex1", meshes=None, *, length=6.0, width=1.0, h=0.
                       "kappa_read_over": "middle half of the strip"}}
 
 
-def arc_check(eigenstrain=-0.05, turn=2.5, *, h=0.29, d=0.33, width=0.5, element_size=0.3,
+def arc_check(eigenstrain=-0.05, turn=2.5, *, h=H, d=FIG6_D, width=0.5, element_size=0.3,
               model="neohookean"):
     """Nonlinear curl of a free strip under a large uniaxial eigenstrain (``nu = 0``).
 

@@ -60,11 +60,11 @@ def pattern_strip(ax, material, cell, y=0.0, height=1.0):
 
 
 def save_figure(fig, out, name, title=None, dpi=110):
-    """Give ``fig`` its title (if any), lay it out, write it to ``out/NAME.png`` and close it."""
-    import matplotlib.pyplot as plt
+    """Give ``fig`` its title (if any), lay it out and write it to ``out/NAME.png`` with
+    :func:`gdfe.io.save_figure` (renamed into place when complete, then closed)."""
+    from gdfe.io import save_figure as write_figure
 
     if title is not None:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    fig.savefig(Path(out) / f"{name}.png", dpi=dpi)
-    plt.close(fig)
+    return write_figure(fig, Path(out) / f"{name}.png", dpi=dpi)

@@ -387,7 +387,7 @@ def scan_checks(resolution="default"):
     from gdfe.io import surface_faces
 
     strip = gdfe.from_rows(["RRRTTRRRRRTTRRTTRRRRRR"] * 2, R=0.8, pixel=0.25, nz=1)
-    hinge = gdfe.hinge(1.6, d=0.33)
+    hinge = gdfe.hinge(1.6, d=gdfe.paper.FIG6_D)
     parts = {"strip": strip, "hinge": hinge}
     if resolution != "coarse":
         parts["tube"] = gdfe.load_design(Path(__file__).resolve().parents[1] / "docs/examples/tube.toml")[0]
@@ -425,7 +425,7 @@ def scan_checks(resolution="default"):
                      "relative_residual": res.match["relative_residual"], "coverage": res.match["coverage"],
                      "factor": res.match["factor"], "simulations": res.n_simulations,
                      "seconds": time.perf_counter() - t0, "right": res.matches == same})
-    des = gdfe.hinge(1.6, d=0.33, nz=2)
+    des = gdfe.hinge(1.6, d=gdfe.paper.FIG6_D, nz=2)
     pts = gdfe.simulate(des).points
     surf = Surface(pts, des)
     on = np.unique(surface_faces(des)[0])

@@ -48,7 +48,7 @@ def run(resolution="default", out=None):
             rows.append({"isotropy": iso, "L_mm": L, "cells": list(CELLS[resolution]), "alpha_rad": angles,
                          "iterations": iters, "alpha_eq1_rad": eq1, "error_finest_rad": float(a[-1] - eq1),
                          "observed_order": rate})
-    result = {"study": "hinge_refinement", "resolution": resolution, "d_mm": D, "h_mm": 0.29,
+    result = {"study": "hinge_refinement", "resolution": resolution, "d_mm": D, "h_mm": paper.H,
               "R": float(cal.ratio(D)), "rows": rows}
     if out is not None:
         out = Path(out)

@@ -151,3 +151,46 @@ def test_the_checks_catch_what_they_look_for():
             "gdfe.mesh": []}
     assert _cycles(fake) == [["gdfe.design", "studies.bench"]]
     assert [d for m, ds in fake.items() for d, _ in ds if layer(d) > layer(m)] == ["studies.bench"]
+
+
+def _public_classes(modules):
+    """Public class name -> modules defining it at module level."""
+    out = {}
+    for name, path in modules.items():
+        for node in ast.parse(path.read_text()).body:
+            if isinstance(node, ast.ClassDef) and not node.name.startswith("_"):
+                out.setdefault(node.name, []).append(name)
+    return out
+
+
+def test_distinct_things_have_distinct_class_names():
+    """Two public classes of one name (two ``Material``s, two ``Target``s) are two different things
+    a reader takes for one."""
+    twice = {c: m for c, m in _public_classes(_modules()).items() if len(m) > 1}
+    assert not twice, "public classes defined more than once: " + "; ".join(f"{c} in {', '.join(m)}" for c, m in twice.items())
+
+
+#: The paper's numbers that live in gdfe/paper.py alone: h, K, d of the Figure 6 hinges.
+PAPER_NUMBERS = {0.29: "paper.H", 0.3706: "paper.K", 0.33: "paper.FIG6_D"}
+
+
+def _paper_literals(source):
+    """(line, value) of every float literal in code (not in strings) equal to one of the paper's numbers."""
+    return [(n.lineno, n.value) for n in ast.walk(ast.parse(source))
+            if isinstance(n, ast.Constant) and type(n.value) is float and n.value in PAPER_NUMBERS]
+
+
+def test_the_papers_numbers_are_written_only_in_gdfe_paper():
+    found = [f"{name} line {line}: {value} (use gdfe.{PAPER_NUMBERS[value]})"
+             for name, path in _modules().items() if name != "gdfe.paper"
+             for line, value in _paper_literals(path.read_text())]
+    assert not found, "the paper's numbers written again:\n" + "\n".join(found)
+
+
+def test_the_name_and_number_checks_catch_what_they_look_for(tmp_path):
+    a, b = tmp_path / "a.py", tmp_path / "b.py"
+    a.write_text("class Material:\n    pass\n\n\nclass _Private:\n    pass\n")
+    b.write_text("class Material:\n    pass\n\n\nclass _Private:\n    pass\n")
+    assert _public_classes({"gdfe.a": a, "reference_fem.b": b}) == {"Material": ["gdfe.a", "reference_fem.b"]}
+    assert _paper_literals('"""h = 0.29 mm"""\ndef f(h=0.29, d=0.33):\n    return 0.3706 * h\n') == [
+        (2, 0.29), (2, 0.33), (3, 0.3706)]

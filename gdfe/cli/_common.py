@@ -19,6 +19,7 @@ from pathlib import Path
 
 from gdfe._validation import GdfeError, check_choice
 from gdfe.io import json_default
+from gdfe.resources import LARGE_MEMORY_FRACTION, LARGE_SECONDS, format_seconds
 
 __all__ = ["emit", "solver_args", "solve", "write_outputs", "exit_status", "scheduler_arg", "using_scheduler",
            "contact_fields", "contact_text", "json_arg", "out_arg", "output_folder", "iterations_text",
@@ -214,8 +215,9 @@ def solver_args(p, defaults_from_file=False):
     p.add_argument("--allow-penetration", action="store_true",
                    help="exit with status 0 even when the result passes through itself")
     p.add_argument("--large", action="store_true",
-                   help="run even when the estimate (printed) says the run is long (over "
-                        "10 min) or takes more than half the machine's memory")
+                   help=f"run even when the estimate (printed) says the run is long (over "
+                        f"{format_seconds(LARGE_SECONDS)}) or takes more than "
+                        f"{100 * LARGE_MEMORY_FRACTION:g} %% of the machine's memory")
 
 
 def solve(design, args, options=None, source=None):

@@ -114,8 +114,8 @@ class SolveProgress(logging.Handler):
     def emit(self, record):
         try:
             self._progress(record)
-        except Exception:  # a record of another shape: progress is only a display
-            pass
+        except Exception:  # a bug in the display: logging prints its traceback, the solve goes on
+            self.handleError(record)
         if record.levelno >= self._threshold:
             logging.getLogger().handle(record)
 

@@ -235,7 +235,6 @@ class _Comparer:
         res = gdfe.simulate(self.design.with_R(R), **self.options)
         self.n_sims += 1
         self.converged &= bool(res.converged)
-        self.last_sim = res.points
         return res.points
 
     def compare(self, sim, restart=False):
@@ -342,8 +341,9 @@ def _check_match(comp, R0, sim0, dev, owner):
     def trial(f):
         R = R0.copy()
         R[contracting] = np.clip(1.0 - f * (1.0 - R0[contracting]), 0.02, 1.0)
-        d, o = comp.compare(comp.simulate(R), restart=True)
-        mm = dict(_match(comp, comp.last_sim, d, o), factor=float(f))
+        sim = comp.simulate(R)
+        d, o = comp.compare(sim, restart=True)
+        mm = dict(_match(comp, sim, d, o), factor=float(f))
         if mm["relative_residual"] < best["m"]["relative_residual"]:
             best["m"] = mm
         return mm["relative_residual"]

@@ -27,12 +27,12 @@ from gdfe.fabrication.masks import (FaceMasks, face_masks, read_mask_png, write_
                                     write_masks)
 from gdfe.fabrication.package import read_print_package, write_print_package
 from gdfe.fabrication.raster import fill_polygons
-from gdfe.fabrication.surface import Surface, film_surface, hex_surface
+from gdfe.fabrication.surface import FilmSurface, film_surface, hex_surface
 from gdfe.fabrication.svg import FACE_COLOURS, FACES, SvgMasks, svg_masks, svg_polyline
 from gdfe.fabrication.viewer import ViewData, read_series, view_data, viewer_fragment, viewer_page, write_viewer
 
 __all__ = [
-    "EXPORT_FORMATS", "Surface", "export_result", "film_surface", "hex_surface", "write_fold_frames", "write_obj",
+    "EXPORT_FORMATS", "FilmSurface", "export_result", "film_surface", "hex_surface", "write_fold_frames", "write_obj",
     "write_ply", "write_shape", "write_stl",
     "CreasePattern", "FoldMasks", "crease_angles", "fold_design", "fold_design_with", "fold_masks", "read_fold",
     "FaceMasks", "face_masks", "read_mask_png", "write_design_toml", "write_mask_png", "write_masks",

@@ -28,9 +28,9 @@ from pathlib import Path
 import numpy as np
 
 from gdfe._validation import GdfeError, check_choice
-from gdfe.fabrication.surface import Surface, film_surface, hex_surface
+from gdfe.fabrication.surface import FilmSurface, film_surface, hex_surface
 
-__all__ = ["Surface", "film_surface", "hex_surface", "write_stl", "write_ply", "write_obj", "write_fold_frames",
+__all__ = ["FilmSurface", "film_surface", "hex_surface", "write_stl", "write_ply", "write_obj", "write_fold_frames",
            "write_shape", "export_result", "EXPORT_FORMATS"]
 
 #: Formats of :func:`export_result` and ``gdfe simulate --export`` (html: :mod:`gdfe.fabrication.viewer`;

@@ -13,11 +13,11 @@ import numpy as np
 
 from gdfe._validation import check_array
 
-__all__ = ["Surface", "film_surface", "hex_surface"]
+__all__ = ["FilmSurface", "film_surface", "hex_surface"]
 
 
 @dataclasses.dataclass
-class Surface:
+class FilmSurface:
     """A film's boundary surface in one shape.
 
     Attributes
@@ -56,7 +56,7 @@ def film_surface(design, points=None):
 
     Returns
     -------
-    Surface
+    FilmSurface
     """
     n = design.mesh.n_points
     P = design.mesh.points if points is None else check_array("points", points, shape=(n, 3))
@@ -74,7 +74,7 @@ def hex_surface(points, cells, material):
 
     Returns
     -------
-    Surface
+    FilmSurface
     """
     from gdfe.io import boundary_quads
 
@@ -82,5 +82,5 @@ def hex_surface(points, cells, material):
     used, inv = np.unique(faces, return_inverse=True)
     quads = inv.reshape(faces.shape)
     tris = np.stack([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]], axis=1).reshape(-1, 3)
-    return Surface(vertices=np.asarray(points, float)[used], triangles=tris, quads=quads,
+    return FilmSurface(vertices=np.asarray(points, float)[used], triangles=tris, quads=quads,
                    material=np.asarray(material)[owner].astype(np.int32), point_index=used)

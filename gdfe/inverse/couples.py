@@ -32,6 +32,7 @@ import numpy as np
 
 from gdfe._validation import GdfeError, GdfeTypeError, check_array, check_number, check_positive
 from gdfe.calibration import DEFAULT_H
+from gdfe.paper import R_ROUNDED
 
 __all__ = ["Couple", "as_couples", "check_open_ratio", "contracting_length", "max_curvature", "arc_points"]
 
@@ -112,14 +113,14 @@ def check_open_ratio(R):
                         what="a contraction ratio strictly between 0 and 1")
 
 
-def contracting_length(angle, h=DEFAULT_H, R=0.7):
+def contracting_length(angle, h=DEFAULT_H, R=R_ROUNDED):
     """Length [mm] of contracting cells that turns by ``angle`` [rad]: ``|angle| h / (1 - R)``."""
     h = check_positive("h", h)
     R = check_open_ratio(R)
     return np.abs(np.asarray(angle, float)) * h / (1.0 - R)
 
 
-def max_curvature(h=DEFAULT_H, R=0.7):
+def max_curvature(h=DEFAULT_H, R=R_ROUNDED):
     """Largest curvature [1/mm] a fully contracting strip reaches: ``(1 - R) / h``."""
     return (1.0 - check_open_ratio(R)) / check_positive("h", h)
 

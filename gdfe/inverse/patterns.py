@@ -30,6 +30,7 @@ import numpy as np
 
 from gdfe._validation import GdfeError, check_array, check_choice, check_number, check_positive
 from gdfe.calibration import DEFAULT_H
+from gdfe.paper import R_ROUNDED
 from gdfe.design import Material, grid_design
 from gdfe.inverse.couples import Couple, as_couples, check_open_ratio
 from gdfe.model import as_model
@@ -331,7 +332,7 @@ def _refine_for_model(material, segment, couples, blocks, b, model, R, h, cell, 
     return material, blocks
 
 
-def with_hinges(couples, turns, h=DEFAULT_H, R=0.7, min_turn=1e-3):
+def with_hinges(couples, turns, h=DEFAULT_H, R=R_ROUNDED, min_turn=1e-3):
     """Replace the sharp turns of a chain by maximum-curvature hinges (paper Sec. 4.2).
 
     A turn ``t`` before couple ``i`` becomes a fully contracting couple of length

@@ -1,6 +1,6 @@
 """The 1-D design pipeline of the paper (Sec. 4.2): target curve -> couples -> printable strip -> check.
 
-1. A **target** (:class:`Target`): a planar curve given as couples ``(L_i, r_i)``
+1. A **target** (:class:`TargetCurve`): a planar curve given as couples ``(L_i, r_i)``
    (:func:`target_from_couples`), as a letter of Figure 9 (:func:`target_from_letter`), or as
    a sketch whose tangent graph is segmented into couples and sharp turns
    (:func:`target_from_sketch`, steps 1-5 of Sec. 4.2).
@@ -32,15 +32,15 @@ from gdfe.inverse.patterns import ROUNDINGS, StripPattern, strip_pattern, with_h
 from gdfe.inverse.segmentation import SketchFit, fit_sketch
 from gdfe.model import as_model
 
-__all__ = ["Target", "target_from_couples", "target_from_letter", "target_from_sketch", "midline_compensated",
+__all__ = ["TargetCurve", "target_from_couples", "target_from_letter", "target_from_sketch", "midline_compensated",
            "StripPlan", "plan_strip", "StripCheck", "check_strip", "TARGET_KINDS"]
 
-#: Kinds of :class:`Target`.
+#: Kinds of :class:`TargetCurve`.
 TARGET_KINDS = ("couples", "letter", "sketch")
 
 
 @dataclasses.dataclass
-class Target:
+class TargetCurve:
     """A planar curve to fold a strip into, and the couples that describe it.
 
     Attributes
@@ -114,7 +114,7 @@ def target_from_couples(couples, heading=0.0, start=(0.0, 0.0), turns=None, name
     tt = np.zeros(len(couples)) if turns is None else check_array("turns", turns, shape=(len(couples),))
     curve, s = arc_points(couples, ds=ds, heading=heading, start=start, turns=turns)
     seg = _segment_of(s, [c.L for c in couples])
-    return Target(name=str(name), kind=kind, couples=couples, turns=tt, heading=float(heading), start=start,
+    return TargetCurve(name=str(name), kind=kind, couples=couples, turns=tt, heading=float(heading), start=start,
                   curve=curve, s_curve=s, curve_segment=seg)
 
 
@@ -143,7 +143,7 @@ def target_from_sketch(points, penalty=0.1, weights=None, min_points=2, name="sk
     seg = np.zeros(len(P), int)
     for j, (a, b) in enumerate(zip(fit.segmentation.start, fit.segmentation.stop)):
         seg[a:b] = j
-    return Target(name=str(name), kind="sketch", couples=list(fit.couples), turns=fit.turns.copy(),
+    return TargetCurve(name=str(name), kind="sketch", couples=list(fit.couples), turns=fit.turns.copy(),
                   heading=fit.heading, start=fit.start.copy(), curve=P, s_curve=None, curve_segment=seg, fit=fit)
 
 
@@ -170,7 +170,7 @@ class StripPlan:
 
     Attributes
     ----------
-    target : Target
+    target : TargetCurve
     printed : list of Couple
         The couples printed along the strip: the target's, with a maximum-curvature hinge
         for each sharp turn (and the mid-line compensation, if asked for).
@@ -183,7 +183,7 @@ class StripPlan:
         Whether the couples were printed with the mid-line compensation.
     """
 
-    target: Target
+    target: TargetCurve
     printed: list
     source: np.ndarray
     pattern: StripPattern
@@ -223,7 +223,7 @@ def plan_strip(target, h=DEFAULT_H, R=None, cell=None, w_min=None, rounding="nea
 
     Parameters
     ----------
-    target : Target
+    target : TargetCurve
     h : float [mm]
         Film thickness.
     R : float, optional
@@ -246,8 +246,8 @@ def plan_strip(target, h=DEFAULT_H, R=None, cell=None, w_min=None, rounding="nea
     -------
     StripPlan
     """
-    if not isinstance(target, Target):
-        raise GdfeError(f"target: expected a gdfe.inverse.Target, got {type(target).__name__}")
+    if not isinstance(target, TargetCurve):
+        raise GdfeError(f"target: expected a gdfe.inverse.TargetCurve, got {type(target).__name__}")
     h = check_positive("h", h)
     model = as_model(model)
     if model is not None:

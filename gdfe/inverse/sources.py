@@ -41,7 +41,7 @@ class CouplesFile:
 
     Attributes
     ----------
-    target : gdfe.inverse.Target
+    target : gdfe.inverse.TargetCurve
     film : dict
         Entries of ``[film]`` (``h``, ``d``, ``R``, ``K``).
     print : dict

@@ -52,6 +52,7 @@ from gdfe.inverse2d.film import Film
 from gdfe.inverse2d.masks import PROJECTIONS, block_size, density_filter, min_feature_ok, project
 from gdfe.inverse2d.targets import Target
 from gdfe.measure import rigid_align
+from gdfe.paper import FIG6_D
 
 __all__ = ["Reachability", "SurfaceDesign", "scale_for", "closest_reachable", "natural_curvature", "target_start",
            "initial_coating", "Objective", "design_surface", "DEFAULT_ITERATIONS", "FOLD_TOL"]
@@ -386,7 +387,7 @@ def _distance(result, film, surf, designed):
     return surface_distance(mid.points(result.points), mid.triangles, surf, designed=designed)
 
 
-def design_surface(target, *, pixel=0.125, w_min=None, d=0.33, h=None, model=None, iterations=DEFAULT_ITERATIONS,
+def design_surface(target, *, pixel=0.125, w_min=None, d=FIG6_D, h=None, model=None, iterations=DEFAULT_ITERATIONS,
                    projection="halftone", filter_radius=None, sigma=None, tolerance_mm=None, callback=None):
     """Design the coating of both faces of a film so that its GDFE fold matches ``target``.
 

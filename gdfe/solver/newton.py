@@ -471,7 +471,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
     anchor = (0, E, np.inf, V.copy())  # iteration, energy, estimate and shape a drift is measured from
     # with a multigrid, the plain step's exact solve is made only where the test could pass
     # (a V-cycle estimates its residual otherwise): the Newton step needs only the gradient
-    lazy = contact is None and getattr(steps, "uses_multigrid", False)
+    lazy = contact is None and steps.uses_multigrid
     while True:
         plain = steps.assemble(Q, Vp, activation, solve=not lazy)  # the plain step from V
         G = plain.V
