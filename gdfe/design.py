@@ -241,8 +241,20 @@ def grid_design(material2d, R=None, h=DEFAULT_H, pixel=0.1, nz=DEFAULT_NZ, isotr
     GdfeError
         Among others, cells too long for their fold (:func:`check_resolution`).
     """
-    return check_resolution(_grid_design(material2d, R, h, pixel, nz, isotropy, film, regions2d, meta, d, model,
-                                         process))
+    return _warn_aspect(check_resolution(_grid_design(material2d, R, h, pixel, nz, isotropy, film, regions2d, meta,
+                                                      d, model, process)))
+
+
+def _warn_aspect(design):
+    """Warn of elongated cells under in-plane isotropic shrink (after the design passed its checks)."""
+    dx, dy = design.mesh.spacing[:2]
+    if design.isotropy > 0 and max(dx, dy) > 1.5 * min(dx, dy):
+        # measured by studies/fig07_crease_fold.py (fine tube meshes): a tube's fold per hinge
+        # falls from 0.755 to 0.255 rad as the cells' aspect goes from 1 to 5.4 (isotropic
+        # shrink); square cells converge under refinement
+        log.warning("cells of %g x %g mm with in-plane isotropic shrink: elongated cells stiffen "
+                    "the fold; use square cells (aspect <= 1.5)", dx, dy)
+    return design
 
 
 def check_process(name, process):
@@ -273,12 +285,6 @@ def _grid_design(material2d, R, h, pixel, nz, isotropy, film, regions2d, meta, d
     h = check_length("h", h)
     isotropy = check_number("isotropy", isotropy, minimum=0.0, maximum=1.0, what="a number in [0, 1]")
     nz = check_int("nz", nz)
-    if isotropy > 0 and max(dx, dy) > 1.5 * min(dx, dy):
-        # measured by studies/fig07_crease_fold.py (fine tube meshes): a tube's fold per hinge
-        # falls from 0.755 to 0.255 rad as the cells' aspect goes from 1 to 5.4 (isotropic
-        # shrink); square cells converge under refinement
-        log.warning("cells of %g x %g mm with in-plane isotropic shrink: elongated cells stiffen "
-                    "the fold; use square cells (aspect <= 1.5)", dx, dy)
     keep = np.ones(material2d.shape, bool) if film is None else np.asarray(film, bool)
     if keep.shape != material2d.shape:
         raise GdfeError(f"film: expected shape {material2d.shape}, got {keep.shape}")
@@ -408,7 +414,7 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
                     raise GdfeError(f"panel_length: the model's contraction reaches through the whole "
                                     f"{name} ({panel_length:g} mm); expected panels longer than that")
                 des.regions[name] = keep
-    check_resolution(des, "cell_size")
+    _warn_aspect(check_resolution(des, "cell_size"))
     # x = 0 at the start of the hinge
     des.mesh.points[:, 0] -= npanel * dx
     return des
