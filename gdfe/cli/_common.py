@@ -23,7 +23,7 @@ from gdfe.solver.simulation import TRUSTED_TOL  # the loosest --tol the command 
 
 __all__ = ["emit", "solver_args", "solve", "write_outputs", "exit_status", "scheduler_arg", "using_scheduler",
            "contact_fields", "contact_text", "json_arg", "out_arg", "output_folder", "iterations_text",
-           "status_word", "command_line", "file_path", "new_file_path", "TRUSTED_TOL"]
+           "status_word", "command_line", "file_path", "new_file_path", "new_toml_path", "TRUSTED_TOL"]
 
 
 class _JsonAction(argparse.Action):
@@ -85,6 +85,15 @@ def new_file_path(text):
     path = file_path(text)
     if path.is_dir() or text.endswith(("/", os.sep)):
         raise argparse.ArgumentTypeError(f"expected the name of a file to write, got the folder {text!r}")
+    return path
+
+
+def new_toml_path(text):
+    """An argument naming a TOML file to write (a model file): ``NAME.toml``, so that no input (a CSV,
+    a picture) is overwritten by a mistyped option."""
+    path = new_file_path(text)
+    if path.suffix.lower() != ".toml":
+        raise argparse.ArgumentTypeError(f"expected a file name ending in .toml, got {text!r}")
     return path
 
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 from gdfe._validation import GdfeError, check_positive
 from gdfe.calibration import MAX_BOOT, MIN_BOOT, READINGS, check_boot, held_out_rmse
-from gdfe.cli._common import emit, file_path, json_arg, new_file_path
+from gdfe.cli._common import emit, file_path, json_arg, new_toml_path
 
 __all__ = ["register", "run"]
 
@@ -22,7 +22,7 @@ def register(sub):
     p.add_argument("--boot", type=int, default=2000,
                    help=f"bootstrap resamples for the 95 %% CI: 0 (none) or {MIN_BOOT} to {MAX_BOOT:g} (default 2000)")
     p.add_argument("--d", type=float, default=None, help="also print Eq. 3's R for this passive thickness [mm]")
-    p.add_argument("--model-out", type=new_file_path, default=None, metavar="M.toml",
+    p.add_argument("--model-out", type=new_toml_path, default=None, metavar="M.toml",
                    help="save the fitted reading as a deformation model file (one --model, not all)")
     json_arg(p, "the fit")
     p.set_defaults(func=run)

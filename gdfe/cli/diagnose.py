@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from gdfe._validation import GdfeError, check_positive
-from gdfe.cli._common import emit, file_path, json_arg, new_file_path, noting, output_folder
+from gdfe.cli._common import emit, file_path, json_arg, new_toml_path, noting, output_folder
 from gdfe.diagnosis.forward import CELLS
 from gdfe.diagnosis.shape import ALIGNMENTS
 
@@ -36,7 +36,7 @@ def register(sub):
     p.add_argument("--no-pairs", action="store_true", help="fit single effects only")
     p.add_argument("--check", choices=["none", *CELLS], default="coarse",
                    help="resolution of the GDFE solves that check the closed forms (default coarse)")
-    p.add_argument("--model-out", type=new_file_path, default=None, metavar="M.toml",
+    p.add_argument("--model-out", type=new_toml_path, default=None, metavar="M.toml",
                    help="save the chosen model as a deformation model file (gdfe simulate/hinge --model)")
     p.add_argument("--effect", default=None, metavar="NAME",
                    help="with --model-out: save this fitted model of the catalogue instead of the chosen one "
