@@ -151,7 +151,8 @@ def _dispatch(args):
     except GdfeError as exc:
         if args.debug:
             traceback.print_exc()
-        print(f"{_name(args)}: error: {exc}", file=sys.stderr)
+        text = " ".join(str(exc).split())  # one line, whatever a library underneath put in it
+        print(f"{_name(args)}: error: {text}", file=sys.stderr)
         return 1
     except Exception:
         from gdfe import __version__

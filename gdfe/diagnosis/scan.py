@@ -96,7 +96,7 @@ def _read_mesh(path):
     except (Exception, SystemExit) as exc:  # meshio raises many kinds, and exits on a corrupt file
         detail = " ".join(line.strip() for line in said.getvalue().splitlines() if line.strip())
         if not isinstance(exc, SystemExit):
-            detail = f"{detail} {type(exc).__name__}: {exc}".strip()
+            detail = " ".join(f"{detail} {type(exc).__name__}: {exc}".split())  # one line (meshio's span several)
         raise GdfeError(f"{path.name}: expected a readable {fmt} file, got one meshio cannot read"
                         + (f" ({detail})" if detail else "")) from None
     if said.getvalue().strip():
