@@ -55,8 +55,8 @@ def mask_from_array(name, value):
     """A boolean mask ``(nx, ny)`` from a boolean array or an array of pixels (module docstring)."""
     arr = np.asarray(value)
     if arr.dtype == bool:
-        if arr.ndim != 2:
-            raise GdfeError(f"{name}: expected a 2-D mask, got shape {arr.shape}")
+        if arr.ndim != 2 or arr.size == 0:
+            raise GdfeError(f"{name}: expected a non-empty 2-D mask, got shape {arr.shape}")
         return arr.copy()
     if arr.dtype.kind not in "uif":
         raise GdfeTypeError(f"{name}: expected a boolean mask or an array of pixel values, got an array of "

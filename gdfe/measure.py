@@ -194,9 +194,12 @@ def curvature_profile(result, design=None, cells=None, axis=(0.0, -1.0, 0.0)):
 def _points_design(result, design):
     if hasattr(result, "points") and hasattr(result, "design"):
         return result.points, result.design
+    if result is None or isinstance(result, (str, bytes, bool, dict)) or np.ndim(result) != 2:
+        raise GdfeTypeError(f"result: expected a gdfe.Result (or an (n, 3) array of points with its design), "
+                            f"got {type(result).__name__}")
     if design is None:
         raise GdfeTypeError("design: needed when result is an array of points")
-    pts = np.asarray(result, float)
+    pts = check_array("result", result, shape=(-1, 3))
     if pts.shape != design.mesh.points.shape:
         raise GdfeError(f"result: expected points of shape {design.mesh.points.shape}, got {pts.shape}")
     return pts, design
