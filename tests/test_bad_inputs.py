@@ -425,8 +425,9 @@ def test_a_design_files_layout_errors_name_their_section(tmp_path):
         gdfe.load_design(_toml(tmp_path, '[film]\nR = 0.7\n[layout]\npixel = [1, 2]\nrows = ["RT"]\n'))
     with pytest.raises(gdfe.GdfeError, match=r"^d\.toml: \[film\] d=0\.1 mm gives R="):
         gdfe.load_design(_toml(tmp_path, "[film]\nd = 0.1\n[hinge]\nlength = 1\n"))
-    with pytest.raises(gdfe.GdfeError, match=r"^d\.toml: \[simulate\] method: expected one of .*'auto'.*, got 'bogus'"):
-        gdfe.load_design(_toml(tmp_path, HINGE + '[simulate]\nmethod = "bogus"\n'))
+    design, options = gdfe.load_design(_toml(tmp_path, HINGE + '[simulate]\nmethod = "bogus"\n'))
+    with pytest.raises(gdfe.GdfeError, match=r"^method: expected one of .*'auto'.*, got 'bogus'"):
+        gdfe.simulate(design, **options)
 
 
 def test_a_loose_tol_is_said_by_the_library(caplog):
