@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import math
 import re
 
 import numpy as np
@@ -172,10 +173,14 @@ class Design:
 
 
 #: The largest turn of one cell's fold [rad]: its length times the fold's curvature (1 - R)/h
-#: (Eq. 2). Beyond 2 rad a cell is longer than the diameter 2h/(1 - R) of the circle its
-#: film rolls into, so the film would overlap itself within two cells: the cells cannot
-#: represent the fold (the solver then stalls in its self-contact steps or folds at random).
-MAX_CELL_TURN = 2.0
+#: (Eq. 2). Beyond half a turn a cell is longer than half the circumference pi h/(1 - R) of the
+#: circle its film rolls into: within the one cell the film turns back on itself, and the film on
+#: either side of it would fold through each other; the solver then stalls in its self-contact
+#: steps (gdfe.hinge(2.6, R=0.05, h=0.05), 3.17 rad per cell, ran over a minute) or works on
+#: cells of any length (`gdfe hinge -L 1e5 --cells 16`, 6580 rad per cell, 11 minutes without
+#: output). A one-cell hinge of 2.11 rad still folds within 0.25 rad of Eq. 2
+#: (studies/fig07_crease_fold.py at its coarse resolution).
+MAX_CELL_TURN = math.pi
 
 
 def check_resolution(design, name="pixel"):
@@ -193,11 +198,11 @@ def check_resolution(design, name="pixel"):
     turn = bend * max(dx, dy * design.isotropy) / design.h
     k = int(np.argmax(turn)) if turn.size else 0
     if turn.size and turn[k] > MAX_CELL_TURN:
-        diameter = 2.0 * design.h / bend[k]
+        most = MAX_CELL_TURN * design.h / bend[k]
         size = dx if dx >= dy * design.isotropy else dy
-        raise GdfeError(f"{name}: expected cells shorter than the circle the film rolls into (diameter 2h/(1 - R) "
-                        f"= {diameter:.3g} mm for h = {design.h:g} mm, R = {1 - bend[k]:.3g}), got {size:.3g} mm: "
-                        f"each cell would turn by {turn[k]:.3g} rad; use cells of at most {diameter:.3g} mm")
+        raise GdfeError(f"{name}: expected cells of at most half the circumference of the circle the film rolls "
+                        f"into (pi h/(1 - R) = {most:.3g} mm for h = {design.h:g} mm, R = {1 - bend[k]:.3g}), got "
+                        f"{size:.3g} mm: each cell would turn by {turn[k]:.3g} rad, more than half a turn")
     return design
 
 
