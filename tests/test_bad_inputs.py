@@ -382,19 +382,20 @@ def test_argument_mistakes_are_one_line(capsys):
 
 
 def test_cells_too_long_for_their_fold_are_refused(capsys):
-    # a cell longer than the diameter 2h/(1 - R) of the circle the film rolls into: the solver
-    # spent minutes in its contact steps (h = 0.05, R = 0.05) or 11 minutes silently (-L 1e5)
-    with pytest.raises(gdfe.GdfeError, match=r"^cell_size: expected cells shorter than the circle the film rolls "
-                                             r"into \(diameter 2h/\(1 - R\) = 0\.105 mm for h = 0\.05 mm, R = 0\.05\), "
-                                             r"got 0\.167 mm: each cell would turn by 3\.17 rad"):
+    # a cell longer than half the circumference pi h/(1 - R) of the circle the film rolls into: the
+    # solver spent minutes in its contact steps (h = 0.05, R = 0.05) or 11 minutes silently (-L 1e5)
+    with pytest.raises(gdfe.GdfeError, match=r"^cell_size: expected cells of at most half the circumference of the "
+                                             r"circle the film rolls into \(pi h/\(1 - R\) = 0\.165 mm for h = 0\.05 mm, "
+                                             r"R = 0\.05\), got 0\.167 mm: each cell would turn by 3\.17 rad, more than "
+                                             r"half a turn"):
         gdfe.hinge(2.6, R=0.05, h=0.05)
-    with pytest.raises(gdfe.GdfeError, match=r"^pixel: expected cells shorter .* got 0\.5 mm: each cell would turn "
-                                             r"by 4\.5 rad; use cells of at most 0\.222 mm"):
+    with pytest.raises(gdfe.GdfeError, match=r"^pixel: expected cells of at most half .* \(pi h/\(1 - R\) = 0\.349 mm "
+                                             r"for h = 0\.1 mm, R = 0\.1\), got 0\.5 mm: each cell would turn by 4\.5 rad"):
         gdfe.from_rows(["RTTR"], R=0.1, h=0.1, pixel=0.5)
     _error(capsys, ["hinge", "-L", "1e5", "--d", "0.33", "--cells", "16"],
-           r"--cells 16: expected cells shorter than the circle .* got 6\.25e\+03 mm")
+           r"--cells 16: expected cells of at most half the circumference .* got 6\.25e\+03 mm")
     _error(capsys, ["hinge", "-L", "1e5", "--d", "0.33"], r"this run is large: 800,016 cells")
-    assert gdfe.hinge(2.6, d=0.33, cell_size=2.6 / 2).n_cells  # 1.37 rad per cell: coarse, allowed
+    assert gdfe.hinge(2.6, d=0.33, cell_size=2.6).n_cells  # one cell turning by 2.74 rad: coarse, allowed
 
 
 def test_the_hinge_command_makes_square_cells(capsys):
@@ -421,8 +422,8 @@ def test_library_arguments_found_by_the_catalogue():
 
 
 def test_a_design_files_layout_errors_name_their_section(tmp_path):
-    with pytest.raises(gdfe.GdfeError, match=r"^d\.toml: \[layout\] pixel: expected cells shorter"):
-        gdfe.load_design(_toml(tmp_path, '[film]\nR = 0.7\n[layout]\npixel = [1, 2]\nrows = ["RT"]\n'))
+    with pytest.raises(gdfe.GdfeError, match=r"^d\.toml: \[layout\] pixel: expected cells of at most half"):
+        gdfe.load_design(_toml(tmp_path, '[film]\nR = 0.7\n[layout]\npixel = [1, 4]\nrows = ["RT"]\n'))
     with pytest.raises(gdfe.GdfeError, match=r"^d\.toml: \[film\] d=0\.1 mm gives R="):
         gdfe.load_design(_toml(tmp_path, "[film]\nd = 0.1\n[hinge]\nlength = 1\n"))
     design, options = gdfe.load_design(_toml(tmp_path, HINGE + '[simulate]\nmethod = "bogus"\n'))
