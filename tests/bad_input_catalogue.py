@@ -455,9 +455,10 @@ def catalogue():
                        ("an empty array", np.zeros((0, 6), bool)), ("five channels", np.zeros((4, 6, 5), np.uint8)),
                        ("a 4-D array", np.zeros((2, 2, 2, 2), np.uint8)), ("strings", np.full((4, 6), "x")),
                        ("objects", np.full((4, 6), None, object)), ("complex", np.zeros((4, 6), complex)),
-                       ("negative int8", np.full((4, 6), -1, np.int8)), ("None", None), ("a number", 3),
-                       ("a shape unlike the bottom's", np.zeros((5, 6), bool))):
+                       ("negative int8", np.full((4, 6), -1, np.int8)), ("None", None), ("a number", 3)):
         api("mask image or array", f"top: {label}", masks_call(arr), "^top")
+    api("mask image or array", "top: a shape unlike the bottom's", masks_call(np.zeros((5, 6), bool)),
+        r"^bottom: expected a mask of shape \(5, 6\) \(like 'top'\), got \(4, 6\)")
     api("mask image or array", "an array means what the image means", lambda tmp: (
         gdfe.from_masks(np.zeros((4, 6), np.uint8), np.full((4, 6), 255, np.uint8), 0.1, R=0.7).material.tolist(),
         gdfe.from_masks(_img(tmp, "blk.png", np.zeros((6, 4), np.uint8)), np.full((4, 6), 255, np.uint8), 0.1,
