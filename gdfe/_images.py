@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from gdfe._validation import GdfeError, GdfeFileNotFoundError, GdfeTypeError, check_file
+from gdfe.resources import check_design_cells
 
 __all__ = ["read_mask_image", "mask_from_array", "read_mask", "DARK", "OPAQUE"]
 
@@ -54,9 +55,11 @@ def _pixels_to_mask(name, pix, scale):
 def mask_from_array(name, value):
     """A boolean mask ``(nx, ny)`` from a boolean array or an array of pixels (module docstring)."""
     arr = np.asarray(value)
+    if arr.ndim >= 2:  # a cell per pixel: refused before any copy when the design could not fit in memory
+        check_design_cells(name, arr.shape[0] * arr.shape[1])
     if arr.dtype == bool:
-        if arr.ndim != 2:
-            raise GdfeError(f"{name}: expected a 2-D mask, got shape {arr.shape}")
+        if arr.ndim != 2 or arr.size == 0:
+            raise GdfeError(f"{name}: expected a non-empty 2-D mask, got shape {arr.shape}")
         return arr.copy()
     if arr.dtype.kind not in "uif":
         raise GdfeTypeError(f"{name}: expected a boolean mask or an array of pixel values, got an array of "
@@ -100,6 +103,7 @@ def read_mask_image(name, source, label=None):
             frames = getattr(img, "n_frames", 1)
             if frames > 1:
                 raise GdfeError(f"{where}: expected a single image, got {frames} frames")
+            check_design_cells(where, img.size[0] * img.size[1])  # before its pixels are decoded
             img.load()
             dpi = img.info.get("dpi")
             pix, scale = _pixels(where, img)

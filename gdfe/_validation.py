@@ -132,9 +132,13 @@ def check_positive(name, value):
                         what="a positive finite number", allow_array=True)
 
 
-def check_length(name, value):
-    """A length of a design [mm]: positive, finite and within :data:`LENGTH_RANGE` (arrays too)."""
-    arr = check_positive(name, value)
+def check_length(name, value, allow_array=True):
+    """A length of a design [mm]: positive, finite and within :data:`LENGTH_RANGE` (arrays too,
+    unless ``allow_array`` is False)."""
+    if not allow_array:
+        arr = check_number(name, value, minimum=0.0, include_minimum=False, what="a positive finite number")
+    else:
+        arr = check_positive(name, value)
     lo, hi = LENGTH_RANGE
     bad = (np.asarray(arr) < lo) | (np.asarray(arr) > hi)
     if np.any(bad):

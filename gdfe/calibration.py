@@ -216,7 +216,8 @@ class CalibrationFit:
     n : int
         Number of tests (0 for a reading with no fit behind it).
     K_ci, p_ci : (2,) tuples
-        95 % percentile-bootstrap intervals over the tests (``p_ci`` is ``(p, p)`` where p is fixed).
+        95 % percentile-bootstrap intervals over the tests (``p_ci`` is ``(p, p)`` where p is fixed);
+        ``(nan, nan)`` where no bootstrap was run (``n_boot=0``, or a reading with no fit).
     residuals : (n,) float array [rad]
         Measured minus fitted angle.
     """
@@ -237,7 +238,8 @@ class CalibrationFit:
         """The reading ``model`` with given ``K`` and ``p`` and no fit behind it (fit fields empty)."""
         check_choice("model", model, READINGS)
         return cls(model=model, K=K, p=p, r2=np.nan, r2_uncentered=np.nan, rmse=np.nan, n=0,
-                   K_ci=(K, K), p_ci=(p, p), residuals=np.zeros(0))
+                   K_ci=(np.nan, np.nan), p_ci=(np.nan, np.nan) if model == "power" else (p, p),
+                   residuals=np.zeros(0))
 
     @property
     def calibration(self) -> "Calibration":
@@ -277,10 +279,15 @@ class CalibrationFit:
     def text(self):
         """Human-readable lines of the fit."""
         unit = " 1/mm" if self.model == "eq1-d1" else ""
-        lines = [f"model  {self.model}: {DESCRIPTIONS[self.model]}",
-                 f"K      {self.K:.4f}{unit}  (95 % bootstrap CI {self.K_ci[0]:.4f} .. {self.K_ci[1]:.4f})"]
+
+        def ci(lo, hi):
+            if not (math.isfinite(lo) and math.isfinite(hi)):
+                return "no interval: no bootstrap was run"
+            return f"95 % bootstrap CI {lo:.4f} .. {hi:.4f}"
+
+        lines = [f"model  {self.model}: {DESCRIPTIONS[self.model]}", f"K      {self.K:.4f}{unit}  ({ci(*self.K_ci)})"]
         if self.model == "power":
-            lines.append(f"p      {self.p:.4f}  (95 % bootstrap CI {self.p_ci[0]:.4f} .. {self.p_ci[1]:.4f})")
+            lines.append(f"p      {self.p:.4f}  ({ci(*self.p_ci)})")
         r2 = "undefined" if math.isnan(self.r2) else f"{self.r2:.4f}"
         r2u = "undefined" if math.isnan(self.r2_uncentered) else f"{self.r2_uncentered:.4f}"
         lines += [f"r2     {r2}  (about the mean; {r2u} about zero)"
@@ -373,8 +380,8 @@ def fit_reading(tests, model="eq1", n_boot=2000, seed=0):
         fitted = K * (L / h) * (h / d) ** p
         boots = np.array([_power_fit((L / h)[i], (h / d)[i], y[i])
                           for k in chunks for i in rng.integers(0, n, size=(k, n))]).reshape(-1, 2)
-        K_ci = tuple(np.percentile(boots[:, 0], [2.5, 97.5]).tolist()) if n_boot else (K, K)
-        p_ci = tuple(np.percentile(boots[:, 1], [2.5, 97.5]).tolist()) if n_boot else (p, p)
+        K_ci = tuple(np.percentile(boots[:, 0], [2.5, 97.5]).tolist()) if n_boot else (np.nan, np.nan)
+        p_ci = tuple(np.percentile(boots[:, 1], [2.5, 97.5]).tolist()) if n_boot else (np.nan, np.nan)
     else:
         x = regressor(model, L, d, h)
         K = float(x @ y / (x @ x))
@@ -386,7 +393,7 @@ def fit_reading(tests, model="eq1", n_boot=2000, seed=0):
             xb, yb = x[idx], y[idx]
             Kb.append((xb * yb).sum(1) / (xb * xb).sum(1))
         Kb = np.concatenate(Kb) if Kb else np.zeros(0)
-        K_ci = tuple(np.percentile(Kb, [2.5, 97.5]).tolist()) if n_boot else (K, K)
+        K_ci = tuple(np.percentile(Kb, [2.5, 97.5]).tolist()) if n_boot else (np.nan, np.nan)
         p_ci = (p, p)
     r2, r2u, rmse, res = fit_quality(y, fitted)
     if n_boot and not K_ci[0] <= K <= K_ci[1]:  # possible for a biased, skewed bootstrap of few tests

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import math
+import re
 
 import numpy as np
 
@@ -28,7 +30,8 @@ from gdfe.resources import check_design_cells
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Material", "Design", "grid_design", "hinge", "from_masks", "from_rows", "load_design", "DESIGN_KEYS"]
+__all__ = ["Material", "Design", "grid_design", "hinge", "from_masks", "from_rows", "load_design", "DESIGN_KEYS",
+           "check_resolution", "MAX_CELL_TURN"]
 
 #: The sections of a design file and the keys of each (:func:`load_design`).
 DESIGN_KEYS = {
@@ -169,6 +172,40 @@ class Design:
         return out
 
 
+#: The largest turn of one cell's fold [rad]: its length times the fold's curvature (1 - R)/h
+#: (Eq. 2). Beyond half a turn a cell is longer than half the circumference pi h/(1 - R) of the
+#: circle its film rolls into: within the one cell the film turns back on itself, and the film on
+#: either side of it would fold through each other; the solver then stalls in its self-contact
+#: steps (gdfe.hinge(2.6, R=0.05, h=0.05), 3.17 rad per cell, ran over a minute) or works on
+#: cells of any length (`gdfe hinge -L 1e5 --cells 16`, 6580 rad per cell, 11 minutes without
+#: output). A one-cell hinge of 2.11 rad still folds within 0.25 rad of Eq. 2
+#: (studies/fig07_crease_fold.py at its coarse resolution).
+MAX_CELL_TURN = math.pi
+
+
+def check_resolution(design, name="pixel"):
+    """Refuse a design whose cells are too long for the fold they make (:data:`MAX_CELL_TURN`).
+
+    Parameters
+    ----------
+    design : Design
+    name : str
+        The argument that set the cell size, for the message (``pixel``, ``cell_size``).
+    """
+    top, bottom = design.face_contraction()
+    bend = np.abs(top - bottom)  # 1 - R of the free face, where one face is coated
+    dx, dy = design.mesh.spacing[:2]
+    turn = bend * max(dx, dy * design.isotropy) / design.h
+    k = int(np.argmax(turn)) if turn.size else 0
+    if turn.size and turn[k] > MAX_CELL_TURN:
+        most = MAX_CELL_TURN * design.h / bend[k]
+        size = dx if dx >= dy * design.isotropy else dy
+        raise GdfeError(f"{name}: expected cells of at most half the circumference of the circle the film rolls "
+                        f"into (pi h/(1 - R) = {most:.3g} mm for h = {design.h:g} mm, R = {1 - bend[k]:.3g}), got "
+                        f"{size:.3g} mm: each cell would turn by {turn[k]:.3g} rad, more than half a turn")
+    return design
+
+
 def grid_design(material2d, R=None, h=DEFAULT_H, pixel=0.1, nz=DEFAULT_NZ, isotropy=1.0, film=None,
                 regions2d=None, meta=None, d=None, model=None, process=None):
     """A design from an in-plane grid of materials.
@@ -203,8 +240,47 @@ def grid_design(material2d, R=None, h=DEFAULT_H, pixel=0.1, nz=DEFAULT_NZ, isotr
     process : dict, optional
         The part's process variables, for a model's process mechanisms (``partial_activation``,
         ``batch``), e.g. ``{"T_C": 150, "lot": "B"}``.
+
+    Raises
+    ------
+    GdfeError
+        Among others, cells too long for their fold (:func:`check_resolution`).
     """
+    return _warn_aspect(check_resolution(_grid_design(material2d, R, h, pixel, nz, isotropy, film, regions2d, meta,
+                                                      d, model, process)))
+
+
+def _warn_aspect(design):
+    """Warn of elongated cells under in-plane isotropic shrink (after the design passed its checks)."""
+    dx, dy = design.mesh.spacing[:2]
+    if design.isotropy > 0 and max(dx, dy) > 1.5 * min(dx, dy):
+        # measured by studies/fig07_crease_fold.py (fine tube meshes): a tube's fold per hinge
+        # falls from 0.755 to 0.255 rad as the cells' aspect goes from 1 to 5.4 (isotropic
+        # shrink); square cells converge under refinement
+        log.warning("cells of %g x %g mm with in-plane isotropic shrink: elongated cells stiffen "
+                    "the fold; use square cells (aspect <= 1.5)", dx, dy)
+    return design
+
+
+def check_process(name, process):
+    """A part's process variables: None, or a mapping of names to finite numbers or text labels."""
+    if process is None:
+        return None
+    if not isinstance(process, dict):
+        raise GdfeTypeError(f"{name}: expected a mapping of process variables (e.g. {{'T_C': 150, 'lot': 'B'}}), "
+                            f"got {describe(process)}")
+    for k, v in process.items():
+        if not isinstance(k, str) or isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, str)) or (
+                isinstance(v, float) and not np.isfinite(v)):
+            raise GdfeError(f"{name}: {k}: expected a finite number or a text label, got {describe(v)}")
+    return dict(process)
+
+
+def _grid_design(material2d, R, h, pixel, nz, isotropy, film, regions2d, meta, d, model, process):
     material2d = np.asarray(material2d)
+    process = check_process("process", process)
+    if R is not None:
+        R = check_ratio("R", R)
     if material2d.ndim != 2:
         raise GdfeError(f"material2d: expected a 2-D grid, got shape {material2d.shape}")
     pixel = check_length("pixel", pixel)
@@ -214,12 +290,6 @@ def grid_design(material2d, R=None, h=DEFAULT_H, pixel=0.1, nz=DEFAULT_NZ, isotr
     h = check_length("h", h)
     isotropy = check_number("isotropy", isotropy, minimum=0.0, maximum=1.0, what="a number in [0, 1]")
     nz = check_int("nz", nz)
-    if isotropy > 0 and max(dx, dy) > 1.5 * min(dx, dy):
-        # measured by studies/fig07_crease_fold.py (fine tube meshes): a tube's fold per hinge
-        # falls from 0.755 to 0.255 rad as the cells' aspect goes from 1 to 5.4 (isotropic
-        # shrink); square cells converge under refinement
-        log.warning("cells of %g x %g mm with in-plane isotropic shrink: elongated cells stiffen "
-                    "the fold; use square cells (aspect <= 1.5)", dx, dy)
     keep = np.ones(material2d.shape, bool) if film is None else np.asarray(film, bool)
     if keep.shape != material2d.shape:
         raise GdfeError(f"film: expected shape {material2d.shape}, got {keep.shape}")
@@ -294,10 +364,11 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
     process : dict, optional
         The part's process variables, for the model's process mechanisms.
     """
-    length = check_length("length", length)
-    width = check_length("width", width)
-    panel_length = check_length("panel_length", panel_length)
-    h = check_length("h", h)
+    length = check_length("length", length, allow_array=False)
+    width = check_length("width", width, allow_array=False)
+    panel_length = check_length("panel_length", panel_length, allow_array=False)
+    h = check_length("h", h, allow_array=False)
+    process = check_process("process", process)
     nz = check_int("nz", nz)
     model = as_model(model)
     if R is None:
@@ -312,7 +383,10 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
     check_choice("face", face, ("top", "bottom"))
     if cell_size is None:
         cell_size = min(length / 16.0, width / 2.0)
-    cell_size = check_length("cell_size", cell_size)
+    cell_size = check_length("cell_size", cell_size, allow_array=False)
+    if cell_size > length:
+        raise GdfeError(f"cell_size: expected at most the hinge's length {length:g} mm (a cell or more across the "
+                        f"hinge), got {cell_size:g} mm")
     nh = max(1, int(round(length / cell_size)))
     dx = length / nh
     npanel = max(1, int(round(panel_length / dx)))
@@ -329,12 +403,11 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
     meta = {"kind": "hinge", "length_mm": length, "d_mm": d, "K": K if model is None or model.name in
             ("paper", "eq3") else None, "R": R, "width_mm": width, "panel_length_mm": npanel * dx, "face": face}
     if R is not None:
-        des = grid_design(mat, R, h=h, pixel=(dx, dy), nz=nz, isotropy=isotropy, regions2d=regions2d,
-                          meta=meta, d=np.where(mat == int(code), np.nan if d is None else d, np.nan))
+        des = _grid_design(mat, R, h, (dx, dy), nz, isotropy, None, regions2d, meta,
+                           np.where(mat == int(code), np.nan if d is None else d, np.nan), None, None)
     else:
         dgrid = np.where(mat == int(code), d, np.nan)
-        des = grid_design(mat, h=h, pixel=(dx, dy), nz=nz, isotropy=isotropy, regions2d=regions2d,
-                          meta=meta, d=dgrid, model=model, process=process)
+        des = _grid_design(mat, None, h, (dx, dy), nz, isotropy, None, regions2d, meta, dgrid, model, process)
         hinge_cells = des.regions["hinge"]
         des.meta["R"] = float(des.R[hinge_cells[0]])
         if des.contraction is not None:  # a mechanism reached into the panels: they end where it stops
@@ -346,6 +419,7 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
                     raise GdfeError(f"panel_length: the model's contraction reaches through the whole "
                                     f"{name} ({panel_length:g} mm); expected panels longer than that")
                 des.regions[name] = keep
+    _warn_aspect(check_resolution(des, "cell_size"))
     # x = 0 at the start of the hinge
     des.mesh.points[:, 0] -= npanel * dx
     return des
@@ -374,6 +448,8 @@ def from_rows(rows, R=None, h=DEFAULT_H, pixel=0.1, nz=DEFAULT_NZ, isotropy=1.0,
     if bad:
         raise GdfeError(f"rows: unknown layout character(s) {sorted(bad)}; expected one of R T B S .")
     film = grid != "."
+    if not film.any():
+        raise GdfeError(f"rows: expected at least one cell of film (R T B S), got only '.' in {describe(rows)}")
     mat = np.zeros(grid.shape, int)
     for ch, code in LAYOUT_CHARS.items():
         mat[grid == ch] = int(code)
@@ -569,7 +645,9 @@ def load_design(path, model=None, process=None):
     except GdfeError as exc:
         if str(exc).startswith(name):
             raise
-        raise type(exc)(f"{name}: {exc}") from None
+        first = re.split(r"[:=\s]", str(exc), maxsplit=1)[0]  # the key the message starts with
+        section = "film" if first in DESIGN_KEYS["film"] else kind if first in DESIGN_KEYS[kind] else None
+        raise type(exc)(f"{name}: [{section}] {exc}" if section else f"{name}: {exc}") from None
     des.meta.setdefault("source", str(path))
     des.meta.setdefault("nz", nz)
     options = dict(doc.get("simulate", {}))
@@ -582,7 +660,7 @@ def load_design(path, model=None, process=None):
     for key, choices in (("contact", ("auto", "on", "off")), ("on_drift", ("warn", "stop"))):
         if key in options:  # the choices of gdfe.simulate's contact= and on_drift=
             check_choice(f"{where} {key}", options[key], choices)
-    if "method" in options and not isinstance(options["method"], str):
+    if "method" in options and not isinstance(options["method"], str):  # its name: checked by gdfe.simulate
         raise GdfeTypeError(f"{where} method: expected the name of a method, got {describe(options['method'])}")
     return des, options
 

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gdfe._validation import GdfeTypeError
+from gdfe._validation import GdfeError, GdfeTypeError
 
 __all__ = ["write_vtu", "write_series", "render_png", "write_json", "write_text", "surface_faces", "boundary_quads",
            "atomic_path", "json_default", "save_figure", "OutputFolder", "MATERIAL_CODES", "MANIFEST", "MARKER",
@@ -30,7 +30,16 @@ MATERIAL_COLOURS = np.array([[0.62, 0.62, 0.66], [0.95, 0.55, 0.15], [0.2, 0.5, 
 
 @contextlib.contextmanager
 def atomic_path(path):
-    """Yield a temporary path beside ``path``; rename it to ``path`` only on success."""
+    """Yield a temporary path beside ``path``; rename it to ``path`` only on success.
+
+    Raises
+    ------
+    GdfeError
+        ``path`` is empty or names a folder (no file could be renamed onto it).
+    """
+    if str(path).strip() in ("", ".") or Path(path).is_dir():
+        raise GdfeError(f"{str(path) or repr('')}: expected the name of a file to write, got "
+                        f"{'a folder' if str(path).strip() else 'an empty name'}")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=path.suffix, dir=path.parent)
@@ -336,6 +345,15 @@ class OutputFolder:
         state = folder_state(self.path)
         if state == "file":
             raise GdfeError(f"{self.name}: expected a folder, got the file {self.path}")
+        if state == "missing":  # made when the command writes: its nearest existing folder must allow it
+            parent = self.path.absolute().parent
+            while not parent.exists() and parent != parent.parent:
+                parent = parent.parent
+            if not parent.is_dir():
+                raise GdfeError(f"{self.name}: cannot create the folder {self.path}: {parent} is a file")
+            if not os.access(parent, os.W_OK | os.X_OK):
+                raise GdfeError(f"{self.name}: cannot create the folder {self.path}: no permission to write in "
+                                f"{parent}")
         if state == "foreign":
             raise GdfeError(f"{self.name}: {self.path} is a folder with files that gdfe did not write (no {MANIFEST}); "
                             f"gdfe replaces only its own output folders: give a new or empty folder")
@@ -356,8 +374,13 @@ class OutputFolder:
                     shutil.rmtree(child)
                 else:
                     child.unlink()
-        self.path.mkdir(parents=True, exist_ok=True)
-        self._write_marker("running")
+        try:
+            self.path.mkdir(parents=True, exist_ok=True)
+            self._write_marker("running")
+        except OSError as exc:
+            from gdfe._validation import GdfeError
+
+            raise GdfeError(f"{self.name}: cannot create the folder {self.path}: {exc.strerror or exc}") from None
         return self
 
     def _write_marker(self, how, detail=""):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from gdfe._validation import GdfeError, GdfeTypeError, check_number
+from gdfe._validation import GdfeError, GdfeTypeError, check_array, check_number
 
 __all__ = ["fold_angle", "curvature_profile", "rigid_align", "shape_distance", "column_frames", "panel_angles"]
 
@@ -25,9 +25,9 @@ def rigid_align(source, target, weights=None):
     t : (3,) float array [mm]
         Translation: ``source @ Q.T + t`` is aligned with ``target``.
     """
-    source = np.asarray(source, float)
-    target = np.asarray(target, float)
-    if source.shape != target.shape or source.ndim != 2 or source.shape[1] != 3:
+    source = check_array("source", source, shape=(-1, 3), min_size=1)
+    target = check_array("target", target, shape=(-1, 3), min_size=1)
+    if source.shape != target.shape:
         raise GdfeError(f"source, target: expected two (n, 3) arrays of the same shape, "
                          f"got {source.shape} and {target.shape}")
     w = np.ones(len(source)) if weights is None else np.asarray(weights, float)
@@ -48,8 +48,12 @@ def shape_distance(a, b):
     dict
         ``rms`` and ``max`` vertex distance [mm], and ``aligned`` (``b`` moved onto ``a``).
     """
+    a = check_array("a", a, shape=(-1, 3), min_size=1)
+    b = check_array("b", b, shape=(-1, 3), min_size=1)
+    if a.shape != b.shape:
+        raise GdfeError(f"a, b: expected two (n, 3) arrays of the same shape, got {a.shape} and {b.shape}")
     Q, t = rigid_align(b, a)
-    bb = np.asarray(b, float) @ Q.T + t
+    bb = b @ Q.T + t
     d = np.linalg.norm(bb - np.asarray(a, float), axis=1)
     return {"rms": float(np.sqrt((d**2).mean())), "max": float(d.max()), "aligned": bb}
 
@@ -190,9 +194,12 @@ def curvature_profile(result, design=None, cells=None, axis=(0.0, -1.0, 0.0)):
 def _points_design(result, design):
     if hasattr(result, "points") and hasattr(result, "design"):
         return result.points, result.design
+    if result is None or isinstance(result, (str, bytes, bool, dict)) or np.ndim(result) != 2:
+        raise GdfeTypeError(f"result: expected a gdfe.Result (or an (n, 3) array of points with its design), "
+                            f"got {type(result).__name__}")
     if design is None:
         raise GdfeTypeError("design: needed when result is an array of points")
-    pts = np.asarray(result, float)
+    pts = check_array("result", result, shape=(-1, 3))
     if pts.shape != design.mesh.points.shape:
         raise GdfeError(f"result: expected points of shape {design.mesh.points.shape}, got {pts.shape}")
     return pts, design

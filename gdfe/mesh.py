@@ -89,7 +89,7 @@ def sheet_mesh(keep, dx, dy, h, nz=DEFAULT_NZ, origin=(0.0, 0.0)):
     if keep.ndim != 2 or keep.size == 0:
         raise GdfeError(f"keep: expected a non-empty 2-D boolean grid, got shape {keep.shape}")
     if not keep.any():
-        raise GdfeError("keep: the grid has no cell of film")
+        raise GdfeError("film: expected at least one cell of film, got none")
     dx, dy, h = check_length("dx", dx), check_length("dy", dy), check_length("h", h)
     nz = check_int("nz", nz)
     check_design_cells("design", int(np.count_nonzero(keep)) * nz)

@@ -335,9 +335,11 @@ class DeformationModel:
             bad = float(np.atleast_1d(np.broadcast_to(d, np.shape(c)))[bad_mask][0])
             hb = float(np.atleast_1d(np.broadcast_to(h, np.shape(c)))[bad_mask][0])
             cb = float(np.atleast_1d(c)[bad_mask][0])
+            d_min = self.d_min(hb, process)
+            need = (f"which needs d > {d_min:.4g} mm" if math.isfinite(d_min) else
+                    "which no passive thickness up to 1 m gives with these parameters")
             raise GdfeError(f"d={bad:g} mm gives R={1 - cb:.4g} by model {self.name!r} ({self.describe_principle()}, "
-                            f"h={hb:g} mm); a contraction ratio must lie in (0, 1], which needs "
-                            f"d > {self.d_min(hb, process):.4g} mm")
+                            f"h={hb:g} mm); a contraction ratio must lie in (0, 1], {need}")
         return c
 
     def d_min(self, h=paper.H, process=None):
@@ -557,10 +559,10 @@ class DeformationModel:
         """
         from gdfe._version import __version__
 
-        K = Parameter(fit.K, ci95=tuple(fit.K_ci) if fit.n else None)
+        K = Parameter(fit.K, ci95=tuple(fit.K_ci) if fit.n and np.isfinite(fit.K_ci).all() else None)
         params = {"K": K}
         if fit.model == "power":
-            params["p"] = Parameter(fit.p, ci95=tuple(fit.p_ci) if fit.n else None)
+            params["p"] = Parameter(fit.p, ci95=tuple(fit.p_ci) if fit.n and np.isfinite(fit.p_ci).all() else None)
         info = _provenance_file(data) if data is not None else {}
         info["n_tests"] = int(fit.n)
         info["rmse_rad"] = float(fit.rmse)

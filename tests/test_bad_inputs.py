@@ -370,3 +370,141 @@ def test_panel_angles_agree_with_the_hinge_fold_angle():
     # with it (isotropic shrink), a difference of 2.5e-4 rad here
     assert row["panels"] == [1, 2] and row["hinge_cells"] == 16 * 8
     assert math.isclose(row["angle_rad"], gdfe.fold_angle(res), abs_tol=1e-3)
+
+
+# -- found by the property tests (tests/test_properties.py) and the catalogue -----------------------
+def test_argument_mistakes_are_one_line(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["hinge", "-L", "abc"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err == ("gdfe hinge: error: argument --length/-L: invalid float value: 'abc' "
+                                           "(options: gdfe hinge --help)\n")
+
+
+def test_cells_too_long_for_their_fold_are_refused(capsys):
+    # a cell longer than half the circumference pi h/(1 - R) of the circle the film rolls into: the
+    # solver spent minutes in its contact steps (h = 0.05, R = 0.05) or 11 minutes silently (-L 1e5)
+    with pytest.raises(gdfe.GdfeError, match=r"^cell_size: expected cells of at most half the circumference of the "
+                                             r"circle the film rolls into \(pi h/\(1 - R\) = 0\.165 mm for h = 0\.05 mm, "
+                                             r"R = 0\.05\), got 0\.167 mm: each cell would turn by 3\.17 rad, more than "
+                                             r"half a turn"):
+        gdfe.hinge(2.6, R=0.05, h=0.05)
+    with pytest.raises(gdfe.GdfeError, match=r"^pixel: expected cells of at most half .* \(pi h/\(1 - R\) = 0\.349 mm "
+                                             r"for h = 0\.1 mm, R = 0\.1\), got 0\.5 mm: each cell would turn by 4\.5 rad"):
+        gdfe.from_rows(["RTTR"], R=0.1, h=0.1, pixel=0.5)
+    _error(capsys, ["hinge", "-L", "1e5", "--d", "0.33", "--cells", "16"],
+           r"--cells 16: expected cells of at most half the circumference .* got 6\.25e\+03 mm")
+    _error(capsys, ["hinge", "-L", "1e5", "--d", "0.33"], r"this run is large: 800,016 cells")
+    assert gdfe.hinge(2.6, d=0.33, cell_size=2.6).n_cells  # one cell turning by 2.74 rad: coarse, allowed
+
+
+def test_the_hinge_command_makes_square_cells(capsys):
+    rc, out, _ = _run(capsys, ["hinge", "-L", "8", "--d", "0.33", "--json"])
+    # 16 cells of 0.5 mm would be twice as long as the strip's 0.25 mm rows: 32 cells of 0.25 mm
+    assert json.loads(out)["n_elements"] == gdfe.hinge(8.0, d=0.33).n_cells == (32 + 2 * 4) * 2
+    with pytest.raises(gdfe.GdfeError, match=r"^cell_size: expected at most the hinge's length 1 mm"):
+        gdfe.hinge(1.0, d=0.33, cell_size=5.0)
+
+
+def test_library_arguments_found_by_the_catalogue():
+    with pytest.raises(gdfe.GdfeError, match=r"^process: expected a mapping of process variables"):
+        gdfe.hinge(1.0, d=0.33, process="x")
+    with pytest.raises(gdfe.GdfeError, match=r"^process: T_C: expected a finite number or a text label, got nan"):
+        gdfe.hinge(1.0, d=0.33, process={"T_C": math.nan})
+    with pytest.raises(TypeError, match=r"^length: expected a positive finite number, got \[1\.0\]"):
+        gdfe.hinge([1.0], d=0.33)
+    with pytest.raises(TypeError, match=r"^R: expected a contraction ratio in \(0, 1\], got True"):
+        gdfe.from_masks(np.zeros((2, 2), bool), np.ones((2, 2), bool), 0.1, R=True)
+    with pytest.raises(gdfe.GdfeError, match=r"^a: expected finite numbers, got nan at \[0, 0\]"):
+        gdfe.shape_distance(np.full((4, 3), np.nan), np.zeros((4, 3)))
+    with pytest.raises(gdfe.GdfeError, match=r"^rows: expected at least one cell of film \(R T B S\), got only '\.'"):
+        gdfe.from_rows(["...."], R=0.7)
+
+
+def test_a_design_files_layout_errors_name_their_section(tmp_path):
+    with pytest.raises(gdfe.GdfeError, match=r"^d\.toml: \[layout\] pixel: expected cells of at most half"):
+        gdfe.load_design(_toml(tmp_path, '[film]\nR = 0.7\n[layout]\npixel = [1, 4]\nrows = ["RT"]\n'))
+    with pytest.raises(gdfe.GdfeError, match=r"^d\.toml: \[film\] d=0\.1 mm gives R="):
+        gdfe.load_design(_toml(tmp_path, "[film]\nd = 0.1\n[hinge]\nlength = 1\n"))
+    design, options = gdfe.load_design(_toml(tmp_path, HINGE + '[simulate]\nmethod = "bogus"\n'))
+    with pytest.raises(gdfe.GdfeError, match=r"^method: expected one of .*'auto'.*, got 'bogus'"):
+        gdfe.simulate(design, **options)
+
+
+def test_a_loose_tol_is_said_by_the_library(caplog):
+    res = gdfe.simulate(gdfe.hinge(1.0, d=0.33), tol=0.01)
+    assert res.converged  # its test passed, and the log says what that means
+    assert "tol = 0.01 is looser than 0.0001 (units of h): such a solve can stop far from the shape" in caplog.text
+
+
+def test_calibrate_says_when_there_is_no_interval(capsys):
+    rc, out, _ = _run(capsys, ["calibrate", str(gdfe.TABLE1), "--boot", "0"])
+    assert rc == 0 and "K      0.0608  (no interval: no bootstrap was run)" in out and "CI" not in out
+    rc, out, _ = _run(capsys, ["calibrate", str(gdfe.TABLE1), "--boot", "0", "--json"])
+    assert json.loads(out)["K_ci95"] == [None, None]
+    _error(capsys, ["calibrate", str(gdfe.TABLE1), "--boot", "0", "--d", "0.01"],
+           r"--d: expected a passive thickness above 0\.04486 mm, where Eq\. 3 of the eq1 reading gives R > 0 "
+           r"\(h = 0\.29 mm\), got 0\.01 mm \(R = -8\.501\)")
+
+
+def test_paths_that_cannot_be_written(tmp_path, capsys):
+    _error(capsys, ["hinge", "-L", "1", "--d", "0.33", "--out", "/proc/gdfe-out"],
+           r"--out: cannot create the folder /proc/gdfe-out")
+    (tmp_path / "f").write_text("x")
+    _error(capsys, ["hinge", "-L", "1", "--d", "0.33", "--out", str(tmp_path / "f" / "sub")],
+           r"--out: cannot create the folder .*sub: .*f is a file")
+    import shutil
+
+    data = tmp_path / "t.csv"
+    shutil.copy(gdfe.TABLE1, data)
+    for argv in (["view", str(tmp_path), "--html", ""], ["calibrate", str(data), "--model-out", str(tmp_path)],
+                 ["calibrate", ""], ["calibrate", str(data), "--model-out", str(data)]):
+        with pytest.raises(SystemExit):
+            main(argv)
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "expected " in err, err
+    assert data.read_bytes() == gdfe.TABLE1.read_bytes()  # --model-out t.csv wrote a model over the data
+    from gdfe.io import write_text
+
+    with pytest.raises(gdfe.GdfeError, match="expected the name of a file to write, got a folder"):
+        write_text(tmp_path, "x")
+
+
+def test_the_corrupt_vtu_through_diagnose_shape_and_its_command(tmp_path, capsys):
+    from gdfe.diagnosis.shape import diagnose_shape
+
+    vtu = tmp_path / "scan.vtu"
+    vtu.write_text('<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid">\n<Piece')
+    design = _toml(tmp_path, "[film]\nd = 0.33\n[hinge]\nlength = 1\n")
+    with pytest.raises(gdfe.GdfeError, match=r"scan\.vtu: expected a readable VTU file, got one meshio cannot read"):
+        diagnose_shape(design, vtu, correct=False)
+    _error(capsys, ["diagnose-shape", str(design), str(vtu)], r"scan\.vtu: expected a readable VTU file")
+    with pytest.raises(gdfe.GdfeError, match=r"^measured: expected coordinates within \+-1e\+06 mm, got 1e\+300"):
+        diagnose_shape(design, np.full((5, 3), 1e300), correct=False)
+
+
+def test_not_a_png_mask_through_simulate(tmp_path, capsys):
+    (tmp_path / "top.png").write_bytes(b"this is not an image")
+    (tmp_path / "bottom.png").write_bytes(b"this is not an image")
+    path = _toml(tmp_path, '[film]\nR = 0.7\n[masks]\npixel = 0.1\ntop = "top.png"\nbottom = "bottom.png"\n')
+    _error(capsys, ["simulate", str(path), "--out", str(tmp_path / "o")],
+           r"d\.toml: \[masks\] top: top\.png: not a readable image \(UnidentifiedImageError")
+
+
+def test_every_subcommand_takes_json_the_same_way():
+    from gdfe.cli._common import _JsonAction
+    from gdfe.cli._main import _subparsers, build_parser
+
+    leaves = [p for p in _subparsers(build_parser()) if not any(
+        a.__class__.__name__ == "_SubParsersAction" for a in p._actions)]
+    assert len(leaves) >= 12
+    for p in leaves:
+        (action,) = [a for a in p._actions if "--json" in a.option_strings]
+        assert isinstance(action, _JsonAction) and action.nargs == "?" and action.const == "-", p.prog
+
+
+def test_progress_bars_show_frames_and_residuals_and_can_be_silenced(capsys):
+    rc, _, err = _run(capsys, ["hinge", "-L", "1", "--d", "0.33", "--steps", "2", "--method", "newton", "--progress"])
+    assert rc == 0 and "solving" in err and "frame 2/2, residual" in err and " h, estimate " in err
+    rc, _, err = _run(capsys, ["hinge", "-L", "1", "--d", "0.33", "--steps", "2", "--progress", "-q"])
+    assert rc == 0 and err == ""

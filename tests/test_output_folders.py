@@ -88,7 +88,7 @@ def test_a_killed_run_is_marked_and_a_rerun_replaces_it(tmp_path, capsys):
     assert json.loads((out / "result.json").read_text())["files"]["pvd"] == str(out / "hinge.pvd")
 
 
-def test_ctrl_c_while_writing_says_what_it_left(tmp_path):
+def test_ctrl_c_while_writing_says_what_it_left(tmp_path, capsys):
     out = tmp_path / "run"
     rc, err = _child(_hinge(out, 12), signal.SIGINT, 3, "frame")
     assert rc == 130 and "Traceback" not in err
@@ -97,6 +97,9 @@ def test_ctrl_c_while_writing_says_what_it_left(tmp_path):
         "files written so far and is marked incomplete (INCOMPLETE.txt); rerun to replace it")
     assert folder_state(out) == "incomplete"
     assert (out / MARKER).read_text().startswith("This folder is incomplete: stopped by Ctrl-C.")
+    assert main(_hinge(out, 1)) == 0  # the rerun replaces it: complete, none of the stopped run's frames
+    assert folder_state(out) == "complete" and _files(out) == [MANIFEST, "hinge.png", "hinge.pvd", "hinge_000.vtu",
+                                                               "hinge_001.vtu", "result.json"]
 
 
 def test_ctrl_c_while_solving_leaves_the_previous_result(tmp_path, capsys):

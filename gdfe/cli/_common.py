@@ -20,15 +20,11 @@ from pathlib import Path
 from gdfe._validation import GdfeError, check_choice
 from gdfe.io import json_default
 from gdfe.resources import LARGE_MEMORY_FRACTION, LARGE_SECONDS, format_seconds
+from gdfe.solver.simulation import TRUSTED_TOL  # the loosest --tol the command line accepts
 
 __all__ = ["emit", "solver_args", "solve", "write_outputs", "exit_status", "scheduler_arg", "using_scheduler",
            "contact_fields", "contact_text", "json_arg", "out_arg", "output_folder", "iterations_text",
-           "status_word", "command_line", "TRUSTED_TOL"]
-
-#: The loosest ``--tol`` (units of h) the command line accepts: the stopping study
-#: (``gdfe study stopping``, its ``TIGHT``) checks solves up to this tolerance against the
-#: accuracy they asked for; looser ones can stop far from the solution while their test passes.
-TRUSTED_TOL = 1e-4
+           "status_word", "command_line", "file_path", "new_file_path", "new_toml_path", "TRUSTED_TOL"]
 
 
 class _JsonAction(argparse.Action):
@@ -76,6 +72,30 @@ def emit(obj, as_json, text: str) -> None:
             raise GdfeError(f"--json: cannot write {path}: {exc.strerror or exc}") from None
         text = f"{text}\nwrote {path}"
     print(text)
+
+
+def file_path(text):
+    """An argument naming a file: not empty (``Path('')`` would be the current folder)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"expected the name of a file, got {text!r}")
+    return Path(text)
+
+
+def new_file_path(text):
+    """An argument naming a file to write: not empty, not a folder."""
+    path = file_path(text)
+    if path.is_dir() or text.endswith(("/", os.sep)):
+        raise argparse.ArgumentTypeError(f"expected the name of a file to write, got the folder {text!r}")
+    return path
+
+
+def new_toml_path(text):
+    """An argument naming a TOML file to write (a model file): ``NAME.toml``, so that no input (a CSV,
+    a picture) is overwritten by a mistyped option."""
+    path = new_file_path(text)
+    if path.suffix.lower() != ".toml":
+        raise argparse.ArgumentTypeError(f"expected a file name ending in .toml, got {text!r}")
+    return path
 
 
 def _out_path(text):

@@ -6,7 +6,7 @@ a ``run(args) -> int`` that the parser's ``func`` default points to. They are im
 statically here; each imports the heavy parts (the reference FEM, the studies, plotting)
 inside the function that runs.
 
-Errors: a :class:`gdfe.GdfeError` (something wrong in what the user gave) is printed as
+Errors: a mistake in the arguments is one line (exit status 2). A :class:`gdfe.GdfeError` (something wrong in what the user gave) is printed as
 one line, with exit status 1. Any other exception is a bug: it keeps its traceback, after a
 line saying how to report it. ``--debug`` prints the traceback of user errors too. Ctrl-C
 stops a command with one line saying what it left (an output folder is then marked
@@ -59,9 +59,17 @@ def _subparsers(parser):
                 yield from _subparsers(sub)
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line on standard error (exit status 2), naming
+    the command and where its options are listed, instead of the usage block and a line."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (options: {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``gdfe`` argument parser with every subcommand."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="gdfe",
         description="Geometry-driven finite elements for 4D-printed heat-shrinking structures.",
     )
@@ -143,7 +151,8 @@ def _dispatch(args):
     except GdfeError as exc:
         if args.debug:
             traceback.print_exc()
-        print(f"{_name(args)}: error: {exc}", file=sys.stderr)
+        text = " ".join(str(exc).split())  # one line, whatever a library underneath put in it
+        print(f"{_name(args)}: error: {text}", file=sys.stderr)
         return 1
     except Exception:
         from gdfe import __version__

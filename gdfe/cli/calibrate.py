@@ -6,7 +6,7 @@ from pathlib import Path
 
 from gdfe._validation import GdfeError, check_positive
 from gdfe.calibration import MAX_BOOT, MIN_BOOT, READINGS, check_boot, held_out_rmse
-from gdfe.cli._common import emit, json_arg
+from gdfe.cli._common import emit, file_path, json_arg, new_toml_path
 
 __all__ = ["register", "run"]
 
@@ -16,13 +16,13 @@ def register(sub):
                        description="Fit a reading of Eq. 1 to folding tests (CSV with L_mm, d_mm, h_mm, alpha_rad): "
                                    "eq1 = K sqrt(h/d^3) L as printed; eq1-d1 = K sqrt(h/d) L; "
                                    "power = c (L/h) (h/d)^p.")
-    p.add_argument("data", type=Path, help="CSV of folding tests")
+    p.add_argument("data", type=file_path, help="CSV of folding tests")
     p.add_argument("--model", choices=READINGS + ("all",), default="eq1",
                    help="reading of Eq. 1 (default eq1, as printed)")
     p.add_argument("--boot", type=int, default=2000,
                    help=f"bootstrap resamples for the 95 %% CI: 0 (none) or {MIN_BOOT} to {MAX_BOOT:g} (default 2000)")
     p.add_argument("--d", type=float, default=None, help="also print Eq. 3's R for this passive thickness [mm]")
-    p.add_argument("--model-out", type=Path, default=None, metavar="M.toml",
+    p.add_argument("--model-out", type=new_toml_path, default=None, metavar="M.toml",
                    help="save the fitted reading as a deformation model file (one --model, not all)")
     json_arg(p, "the fit")
     p.set_defaults(func=run)
@@ -47,8 +47,12 @@ def run(args):
         d.pop("residuals")
         block = f.text()
         if args.d is not None:
-            d["R_at_d"] = {"d_mm": args.d, "h_mm": h, "R": float(f.ratio(args.d, h))}
-            block += f"\nR      {d['R_at_d']['R']:.4f} at d = {args.d:g} mm (Eq. 3 of this reading, h = {h:g} mm)"
+            R = float(f.ratio(args.d, h))
+            if not R > 0:  # a contraction ratio <= 0: the film would vanish
+                raise GdfeError(f"--d: expected a passive thickness above {f.d_min(h):.4g} mm, where Eq. 3 of the "
+                                f"{m} reading gives R > 0 (h = {h:g} mm), got {args.d:g} mm (R = {R:.4g})")
+            d["R_at_d"] = {"d_mm": args.d, "h_mm": h, "R": R}
+            block += f"\nR      {R:.4f} at d = {args.d:g} mm (Eq. 3 of this reading, h = {h:g} mm)"
         loo = held_out_rmse(tests, m)
         d["held_out_rmse"] = loo
         block += f"\nLOO    {loo:.4f} rad (leave-one-test-out RMSE)"

@@ -16,8 +16,8 @@ import math
 from pathlib import Path
 
 from gdfe import paper
-from gdfe._validation import GdfeError
-from gdfe.cli._common import emit, json_arg, noting, out_arg, output_folder
+from gdfe._validation import GdfeError, check_length
+from gdfe.cli._common import emit, file_path, json_arg, noting, out_arg, output_folder
 
 __all__ = ["register", "run"]
 
@@ -32,7 +32,7 @@ def register(sub):
                        description="The 1-D design pipeline: couples (TOML), a sketch (CSV of points or an SVG "
                                    "stroke) or --text letters -> printer masks, a design file, the simulated "
                                    "check and its deviation report.")
-    p.add_argument("input", nargs="?", type=Path, help="couples (.toml), sketch (.csv or .svg)")
+    p.add_argument("input", nargs="?", type=file_path, help="couples (.toml), sketch (.csv or .svg)")
     p.add_argument("--text", help="letters of Figure 9 to design, one strip each (instead of INPUT)")
     out_arg(p, required=True)
     p.add_argument("--pixel", type=float, help=f"printer pixel = pattern cell [mm] (default {DEFAULT_PIXEL:g})")
@@ -147,6 +147,7 @@ def _run(args, begin_output):
     R = inv.check_open_ratio(R)
     pixel = ch.pick("pixel", args.pixel, print_file.get("pixel"), DEFAULT_PIXEL,
                     "default (the paper gives no printer pixel)", "mm")
+    check_length("pixel", pixel)  # before w_min, which defaults to it
     w_min = ch.pick("w_min", args.w_min, print_file.get("w_min"), pixel, "default: one pixel", "mm")
     width = ch.pick("width", args.width, print_file.get("width"), DEFAULT_WIDTH,
                     "default (the studies' strip; not in the paper)", "mm")

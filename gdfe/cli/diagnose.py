@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from gdfe._validation import GdfeError, check_positive
-from gdfe.cli._common import emit, json_arg, noting, output_folder
+from gdfe.cli._common import emit, file_path, json_arg, new_toml_path, noting, output_folder
 from gdfe.diagnosis.forward import CELLS
 from gdfe.diagnosis.shape import ALIGNMENTS
 
@@ -21,7 +21,7 @@ def register(sub):
                     "(oven temperature, time) are process columns of partial_activation; text columns with "
                     "repeated labels are groups (leave-one-group-out, a batch effect); a sigma_rad column is "
                     "the noise of each test. Exit status 3 when the chosen model's fit did not converge.")
-    p.add_argument("data", type=Path, help="CSV with columns L_mm, d_mm, h_mm, alpha_rad (more allowed)")
+    p.add_argument("data", type=file_path, help="CSV with columns L_mm, d_mm, h_mm, alpha_rad (more allowed)")
     p.add_argument("--sigma", type=float, default=None, metavar="S",
                    help="noise of the measured angles [rad] (default: a sigma_rad column, else replicate "
                         "rows, else unknown)")
@@ -36,7 +36,7 @@ def register(sub):
     p.add_argument("--no-pairs", action="store_true", help="fit single effects only")
     p.add_argument("--check", choices=["none", *CELLS], default="coarse",
                    help="resolution of the GDFE solves that check the closed forms (default coarse)")
-    p.add_argument("--model-out", type=Path, default=None, metavar="M.toml",
+    p.add_argument("--model-out", type=new_toml_path, default=None, metavar="M.toml",
                    help="save the chosen model as a deformation model file (gdfe simulate/hinge --model)")
     p.add_argument("--effect", default=None, metavar="NAME",
                    help="with --model-out: save this fitted model of the catalogue instead of the chosen one "
@@ -50,8 +50,8 @@ def register(sub):
                     "per-region correction of the contraction ratio. Exit status 4 when the scan does not "
                     "match the design (another part, degenerate or random points, a scale error), 3 when a "
                     "simulation did not converge.")
-    p.add_argument("design", type=Path, help="design file (.toml)")
-    p.add_argument("measured", type=Path, help="point cloud or mesh: .ply, .vtu, .obj or .csv (x,y,z)")
+    p.add_argument("design", type=file_path, help="design file (.toml)")
+    p.add_argument("measured", type=file_path, help="point cloud or mesh: .ply, .vtu, .obj or .csv (x,y,z)")
     json_arg(p, dest="json_out")
     p.add_argument("--report", type=_folder, metavar="DIR",
                    help="write plots and summary.md into this folder (complete, or marked incomplete)")

@@ -7,8 +7,9 @@ from pathlib import Path
 
 from gdfe import paper
 from gdfe._validation import GdfeError, check_int
-from gdfe.cli._common import (contact_fields, contact_text, emit, exit_status, iterations_text, json_arg, noting,
-                               out_arg, output_folder, process_arg, solve, solver_args, status_word, write_outputs)
+from gdfe.cli._common import (contact_fields, contact_text, emit, exit_status, file_path, iterations_text, json_arg,
+                               noting, out_arg, output_folder, process_arg, solve, solver_args, status_word,
+                               write_outputs)
 from gdfe.cli._progress import progress_mode
 from gdfe.mesh import DEFAULT_NZ
 
@@ -24,11 +25,13 @@ def register(sub):
     g = p.add_mutually_exclusive_group()
     g.add_argument("--K", type=float, default=None, help=f"coefficient K of Eq. 1 (default {paper.K:g})")
     g.add_argument("--R", type=float, default=None, help="contraction ratio, overriding Eq. 3")
-    g.add_argument("--model", type=Path, default=None,
+    g.add_argument("--model", type=file_path, default=None,
                    help="deformation model file (TOML, from gdfe calibrate/diagnose --model-out): R from --d")
     p.add_argument("--width", type=float, default=0.5, help="strip width [mm] (default 0.5)")
     p.add_argument("--panel-length", type=float, default=1.0, help="length of each panel [mm]")
-    p.add_argument("--cells", type=int, default=16, help="cells across the hinge (default 16)")
+    p.add_argument("--cells", type=int, default=None,
+                   help="cells across the hinge (default 16, more where cells of L/16 would be longer than half "
+                        "the strip's width: square cells)")
     p.add_argument("--nz", type=int, default=DEFAULT_NZ,
                    help=f"cell layers through the film (default {DEFAULT_NZ}, as for every design)")
     p.add_argument("--isotropy", type=float, default=1.0,
@@ -55,10 +58,15 @@ def _run(args, folder):
     if model is not None and args.d is None:
         raise GdfeError("--model: expected --d too (the model gives R from the passive thickness)")
     K = gdfe.PAPER_K if args.K is None else args.K
-    check_int("--cells", args.cells)
-    design = gdfe.hinge(args.length, d=args.d, h=args.h, K=K, R=args.R, width=args.width,
-                        panel_length=args.panel_length, cell_size=args.length / args.cells, nz=args.nz,
-                        isotropy=args.isotropy, model=model, process=args.process)
+    cell_size = None if args.cells is None else args.length / check_int("--cells", args.cells)
+    try:
+        design = gdfe.hinge(args.length, d=args.d, h=args.h, K=K, R=args.R, width=args.width,
+                            panel_length=args.panel_length, cell_size=cell_size, nz=args.nz,
+                            isotropy=args.isotropy, model=model, process=args.process)
+    except GdfeError as exc:
+        if cell_size is None or not str(exc).startswith("cell_size: "):
+            raise
+        raise GdfeError(f"--cells {args.cells}: {str(exc)[len('cell_size: '):]}") from None
     res = solve(design, args)
     alpha = gdfe.fold_angle(res)
     R = float(design.meta["R"])

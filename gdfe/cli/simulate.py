@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gdfe.cli._common import (contact_text, emit, exit_status, iterations_text, json_arg, noting, out_arg,
+from gdfe.cli._common import (contact_text, emit, exit_status, file_path, iterations_text, json_arg, noting, out_arg,
                                output_folder, process_arg, solve, solver_args, status_word, write_outputs)
 from gdfe.cli._progress import progress_mode
 
@@ -14,9 +14,9 @@ __all__ = ["register", "run"]
 def register(sub):
     p = sub.add_parser("simulate", help="simulate a design file (TOML)",
                        description="Simulate a TOML design; write a VTU series, a PNG and a JSON summary.")
-    p.add_argument("design", type=Path, help="design file (.toml), or a drawing (.svg, .fold)")
+    p.add_argument("design", type=file_path, help="design file (.toml), or a drawing (.svg, .fold)")
     out_arg(p, required=True)
-    p.add_argument("--model", type=Path, default=None,
+    p.add_argument("--model", type=file_path, default=None,
                    help="deformation model file (TOML) replacing the design's own (its cells' R from their d)")
     process_arg(p)
     solver_args(p, defaults_from_file=True)

@@ -17,9 +17,9 @@ import logging
 
 import numpy as np
 
-from gdfe._validation import GdfeError, check_file, read_text
+from gdfe._validation import LENGTH_RANGE, GdfeError, check_array, check_file, read_text
 
-__all__ = ["load_measured", "MEASURED_SUFFIXES"]
+__all__ = ["load_measured", "check_points", "MEASURED_SUFFIXES"]
 
 log = logging.getLogger(__name__)
 
@@ -66,7 +66,22 @@ def load_measured(path, *, name="path"):
     if pts.shape[1] == 2:
         pts = np.column_stack([pts, np.zeros(len(pts))])
     hexes = [c.data for c in mesh.cells if c.type == "hexahedron"]
-    return pts[:, :3], (np.concatenate(hexes) if hexes else None)
+    return check_points(path.name, pts[:, :3], min_size=1), (np.concatenate(hexes) if hexes else None)
+
+
+def check_points(name, points, min_size=4):
+    """A measured shape's points: a ``(k, 3)`` array of at least ``min_size`` finite points
+    whose coordinates lie within the lengths a design may have (:data:`LENGTH_RANGE`, mm).
+
+    Coordinates beyond it (1e300) are no scan in mm: a unit or a file error, and the
+    alignment's distances would overflow.
+    """
+    pts = check_array(name, points, shape=(-1, 3), min_size=min_size)
+    far = np.abs(pts) > LENGTH_RANGE[1]
+    if far.any():
+        raise GdfeError(f"{name}: expected coordinates within +-{LENGTH_RANGE[1]:g} mm, got "
+                        f"{pts[far].flat[0]:g} (point {int(np.argwhere(far)[0][0])})")
+    return pts
 
 
 def _read_mesh(path):
@@ -81,7 +96,7 @@ def _read_mesh(path):
     except (Exception, SystemExit) as exc:  # meshio raises many kinds, and exits on a corrupt file
         detail = " ".join(line.strip() for line in said.getvalue().splitlines() if line.strip())
         if not isinstance(exc, SystemExit):
-            detail = f"{detail} {type(exc).__name__}: {exc}".strip()
+            detail = " ".join(f"{detail} {type(exc).__name__}: {exc}".split())  # one line (meshio's span several)
         raise GdfeError(f"{path.name}: expected a readable {fmt} file, got one meshio cannot read"
                         + (f" ({detail})" if detail else "")) from None
     if said.getvalue().strip():
@@ -123,4 +138,4 @@ def _read_csv(path):
             raise GdfeError(f"{path.name}: line {line}: expected finite coordinates, got {r}")
     if len(pts) < 4:
         raise GdfeError(f"{path.name}: expected at least 4 points, got {len(pts)}")
-    return pts
+    return check_points(path.name, pts)

@@ -62,7 +62,7 @@ import numpy as np
 from gdfe._validation import GdfeError, check_array, check_choice, check_positive
 from gdfe.diagnosis.align import align_icp
 from gdfe.diagnosis.regions import design_regions
-from gdfe.diagnosis.scan import load_measured
+from gdfe.diagnosis.scan import check_points, load_measured
 from gdfe.diagnosis.surface import Surface
 
 __all__ = ["ShapeDiagnosis", "diagnose_shape", "NAME_GAIN", "ALIGNMENTS", "MATCH_RESIDUAL",
@@ -437,7 +437,7 @@ def diagnose_shape(design, measured, *, align="auto", correct=True, options=None
     if isinstance(measured, (str, Path)):
         measured_path = str(measured)
         measured, cells = load_measured(measured, name="measured")
-    measured = check_array("measured", measured, shape=(-1, 3), min_size=4)
+    measured = check_points("measured", measured)
     import time
 
     t0 = time.perf_counter()

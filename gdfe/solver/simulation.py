@@ -24,7 +24,7 @@ from gdfe.solver.penetration import Penetration, PenetrationCheck
 from gdfe.solver.starts import flat_start, multilevel_start
 
 __all__ = ["Result", "ConvergenceError", "simulate", "INITS", "MULTILEVEL_CELLS", "CONTACT_LEVELS",
-           "CONTACT_LEVEL_TOL", "CONTACT_LEVEL_ITER", "SHAPE_ACCURACY", "ALTERNATION_TOL", "default_tol"]
+           "CONTACT_LEVEL_TOL", "CONTACT_LEVEL_ITER", "SHAPE_ACCURACY", "ALTERNATION_TOL", "TRUSTED_TOL", "default_tol"]
 
 log = logging.getLogger(__name__)
 
@@ -49,6 +49,10 @@ SHAPE_ACCURACY = 1e-6
 #: ``tol`` of the alternation methods when none is given (units of h): their plain step
 #: underestimates the distance to the solution, so they get no size-scaled test.
 ALTERNATION_TOL = 1e-7
+#: The loosest ``tol`` (units of h) whose solves the stopping study (``gdfe study stopping``,
+#: its ``TIGHT``) finds within the accuracy they asked for; looser ones can stop far from the
+#: solution while their test passes. :func:`simulate` warns above it; the command line refuses.
+TRUSTED_TOL = 1e-4
 
 
 def default_tol(design, method):
@@ -292,12 +296,18 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
         start = check_array("init", init, shape=design.mesh.points.shape)
         init = "given"
     steps = check_int("steps", steps)
-    check_run(design, steps)  # a run whose memory estimate exceeds the machine's is refused (gdfe.resources)
+    est = check_run(design, steps)  # a run whose memory estimate exceeds the machine's is refused (gdfe.resources)
+    if est.large:  # the command line asks for --large first; a library call is told what it started
+        log.warning("this run is large: %s (an estimate, gdfe.resources)", est.text())
     if max_iter is None:
         max_iter = 200 if method.startswith("newton") else 5000
     max_iter = check_int("max_iter", max_iter)
     history = check_int("history", history)
     tol = default_tol(design, method) if tol is None else check_tol(tol)
+    if tol > TRUSTED_TOL:
+        log.warning("tol = %g is looser than %g (units of h): such a solve can stop far from the shape while its "
+                    "test passes (gdfe study stopping), so converged=True means only that the test passed",
+                    tol, TRUSTED_TOL)
     on_drift = check_choice("on_drift", on_drift, ON_DRIFT)
     t0 = time.perf_counter()
     solver = Solver(design)
