@@ -55,6 +55,7 @@ NumPy and SciPy.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 
 import numpy as np
@@ -278,6 +279,8 @@ class Contact:
     Attributes
     ----------
     dhat, stiffness : float
+        (``stiffness`` is made on first use: a :class:`Contact` that only tests for crossings,
+        :meth:`crosses`, never needs it.)
     surface : (s,) int array
         The boundary vertices, indices into the mesh's points.
     mesh : ipctk.CollisionMesh
@@ -307,8 +310,7 @@ class Contact:
         check_instance("design", design, Design)
         self.design = design
         self.dhat = default_dhat(design) if dhat is None else float(check_positive("dhat", dhat))
-        self.stiffness = (default_stiffness(design, self.dhat) if stiffness is None
-                          else float(check_positive("stiffness", stiffness)))
+        self._stiffness = None if stiffness is None else float(check_positive("stiffness", stiffness))
         tris, _ = surface_triangles(design)
         self.surface = np.unique(tris)
         remap = np.full(design.mesh.n_points, -1)
@@ -321,12 +323,21 @@ class Contact:
         self.n = design.mesh.n_points
         self._dofs = (3 * self.surface[:, None] + np.arange(3)).ravel()
         self._ipctk = ipctk
-        self.potential = ipctk.BarrierPotential(self.dhat, self.stiffness)
         self._ccd = ipctk.TightInclusionCCD(*CCD_TIGHT_INCLUSION)
         ipctk.set_num_threads(CONTACT_THREADS)  # see Notes
         self.timings = {"barrier": 0.0, "ccd": 0.0}
         self._swept = None  # (lo, hi, candidates) of the last step that ran the narrow phase
         self._primitives = self.surface.size + edges.shape[0] + faces.shape[0]
+
+    @functools.cached_property
+    def stiffness(self) -> float:
+        """Barrier stiffness ``kappa`` (the one given, else :func:`default_stiffness`; made on first use)."""
+        return default_stiffness(self.design, self.dhat) if self._stiffness is None else self._stiffness
+
+    @functools.cached_property
+    def potential(self):
+        """ipctk's ``BarrierPotential`` with :attr:`dhat` and :attr:`stiffness` (made on first use)."""
+        return self._ipctk.BarrierPotential(self.dhat, self.stiffness)
 
     def _surface_points(self, V):
         return np.asfortranarray(np.asarray(V, float)[self.surface])

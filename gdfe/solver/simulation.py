@@ -44,8 +44,9 @@ CONTACT_LEVEL_TOL = 1e-2
 #: self-intersection (the same reason).
 CONTACT_LEVEL_ITER = 10
 #: ``contact="auto"`` tests every this many iterates of a contact-free Newton solve, and every
-#: frame, for self-intersection (the IPC Toolkit's test, about a tenth of a Newton iteration),
-#: and solves with contact as soon as one crosses itself, without finishing the contact-free solve.
+#: frame but the last (the penetration check follows it), for self-intersection (the IPC
+#: Toolkit's test, which costs about a tenth of a Newton iteration), and solves with contact as
+#: soon as one crosses itself, without finishing the contact-free solve.
 AUTO_CHECK_EVERY = 4
 #: With ``tol=None`` a Newton solve stops when its estimated distance to the solution is below
 #: this fraction of the part's size (the diagonal of the flat print's bounding box): far below
@@ -245,8 +246,8 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
         every frame, and solved again with contact only when it penetrates - so nothing
         slows down where nothing touches, and nothing that passes through itself is
         returned as an answer while contact is installed. The contact-free Newton solve is
-        tested for self-intersection every :data:`AUTO_CHECK_EVERY` iterations and at every
-        frame, and stops at the first that crosses itself: the contact solve then starts
+        tested for self-intersection every :data:`AUTO_CHECK_EVERY` iterations and at the end
+        of every frame but the last, and stops at the first that crosses itself: the contact solve then starts
         at once, and its result is that of ``"on"``. ``"on"``: every frame with
         contact. ``"off"``: no contact; a result that penetrates itself is logged as a
         warning. Every result carries the check (:attr:`Result.penetration`). A contact
@@ -495,7 +496,7 @@ def _run_frames(solver, acts, method, term, *, init, start, seed, tol, max_iter,
             watch = None if monitor is None else functools.partial(monitor, k + 1)
             stats = solver.solve(V, a, method=method, tol=tol, max_iter=max_iter, history=history,
                                  on_drift=on_drift, monitor=watch)
-            if monitor is not None:
+            if monitor is not None and k + 2 < len(acts):  # the last frame: the penetration check follows
                 monitor(k + 1, None, stats.points)
         else:
             a_prev = acts[k]
