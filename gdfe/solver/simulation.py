@@ -109,7 +109,8 @@ class Result:
     timings : dict
         Seconds spent in the factorisation, the orientation and assembly steps, the
         Newton steps (``"newton"``), the multilevel start (``"start"``), the penetration
-        checks (``"penetration_check"``), and with contact the barrier (``"barrier"``),
+        checks (``"penetration_check"``, with ``contact="auto"``'s crossing tests), and with
+        contact the barrier (``"barrier"``),
         collision detection (``"ccd"``) and the contact-free solve that came first
         (``"contact_free_solve"``, ``contact="auto"``).
     penetration : Penetration
