@@ -14,7 +14,10 @@
    (:func:`box_design`): a cross-shaped blank, a square base with four walls on hinges
    designed to fold by 2.1 rad (past a right angle), so the walls lean in and meet at the
    box's edges; measured: each wall's fold and the smallest distance between neighbouring
-   walls.
+   walls. Whether the result is a minimum: the shape moved by a seeded random displacement of
+   2 um (:data:`PERTURB_MM`) and solved again with contact - a minimum comes back, a state that
+   only symmetry holds (four walls butting corner to corner) goes on to a lower energy. The same
+   test on the hinges' contact results.
 3. *Table 1 with contact.* Each specimen of Table 1 as a hinge of the Figure 6 geometry
    (1 mm panels, 0.5 mm strip), its R from the ``eq1-d1`` reading refitted to Table 1
    (``gdfe.fit_reading(TABLE1, "eq1-d1")``: the reading that fits Table 1 best, R^2 = 0.80,
@@ -24,8 +27,16 @@
    itself at all (bisection over R on the longest specimen).
 4. *Cost.* Seconds with contact over seconds without, ``contact="auto"`` (the default) and
    ``"on"``, on designs of about 10^3 and 10^4 cells that touch (the box) and that do not
-   (the corrugated mask sheet of :mod:`studies.bench`); medians of the repeats, with the
-   machine's load. Goals: at most 3x where the film touches itself, 1.2x where it does not.
+   (the corrugated mask sheet of :mod:`studies.bench`): wall-clock and CPU seconds
+   (``time.process_time``, less sensitive to other work on the machine), medians of repeats
+   that interleave the three modes (more repeats of the designs solved in a fraction of a
+   second: :data:`SETTINGS`), with the machine's load. Goals (issue 13): at most 3x where
+   the film touches itself, 1.2x where it does not; a goal is met when both the wall-clock and
+   the CPU ratio of ``"auto"`` are within it. Measured at default resolution (README,
+   "Self-contact"; ``docs/bench/contact/contact.json``): met on the 1 536-cell box and on both
+   sheets, not on the 9 600-cell box, whose walls meet, pass each other and slide along each
+   other's edges: its contact solve takes about 2.5 times the contact-free iterations, each
+   with a collision-limited line search.
 
 Run ``python -m studies.contact [--out DIR] [--resolution R] [--json]`` or
 ``gdfe study contact``; writes ``contact.png`` and ``contact.json``.
@@ -36,11 +47,13 @@ from __future__ import annotations
 import math
 import os
 import platform
+import statistics
+import time
 
 import numpy as np
 
 from gdfe import paper
-from studies._common import check_resolution, finish, headline, main_of, median_time, pyplot
+from studies._common import check_resolution, finish, headline, main_of, pyplot
 
 NAME = "contact"
 H = paper.H
@@ -52,13 +65,18 @@ TUBE_OVER = 1.05
 #: Box: base side, wall height [mm], the hinges' Eq. 2 design angle [rad].
 BOX_BASE, BOX_WALL, BOX_ANGLE = 4.0, 3.0, 2.1
 WALLS = {"wall_xp": (1, 0), "wall_yp": (0, 1), "wall_xm": (-1, 0), "wall_ym": (0, -1)}
+#: Amplitude [mm] of the seeded random displacement that tests whether a contact result is a
+#: minimum (:func:`perturbed`): far below any gap the study measures, far above round-off.
+PERTURB_MM = 2e-3
+#: Per resolution: the box's pixel, the tube's division, the Table 1 rows, the bisection steps of
+#: the onset, and the cost designs as (box pixel [mm] or sheet cells, repeats).
 SETTINGS = {
     "coarse": {"box_pixel": 0.5, "tube_div": 2, "table_rows": (0, 4, 5, 13, 17), "onset_steps": 5,
-               "cost": {"touching": (0.5,), "not touching": (256,)}, "repeats": 1},
+               "cost": {"touching": ((0.5, 1),), "not touching": ((256, 1),)}},
     "default": {"box_pixel": 0.25, "tube_div": 4, "table_rows": None, "onset_steps": 8,
-                "cost": {"touching": (0.25, 0.1), "not touching": (1000, 10000)}, "repeats": 3},
+                "cost": {"touching": ((0.25, 5), (0.1, 3)), "not touching": ((1000, 15), (10000, 5))}},
     "fine": {"box_pixel": 0.2, "tube_div": 4, "table_rows": None, "onset_steps": 10,
-             "cost": {"touching": (0.25, 0.1), "not touching": (1000, 10000)}, "repeats": 5},
+             "cost": {"touching": ((0.25, 9), (0.1, 5)), "not touching": ((1000, 25), (10000, 9))}},
 }
 
 
@@ -137,6 +155,45 @@ def _wall_measures(points, design):
     return folds, corners
 
 
+def perturbed(res, seed=0):
+    """``res``'s design solved again with contact from its shape moved by a seeded random displacement.
+
+    Every vertex moves by :data:`PERTURB_MM` times a standard normal in each coordinate; the
+    contact solve (``res``'s method and tolerance, at full activation) starts there. Returns
+    the :class:`gdfe.solver.SolveStats`, or None when the moved shape is not free of
+    self-intersection.
+    """
+    import gdfe
+    from gdfe.solver.contact import Contact
+
+    des = res.design
+    term = Contact(des)
+    V = res.points + PERTURB_MM * np.random.default_rng(seed).standard_normal(res.points.shape)
+    if not term.is_clear(V):
+        return None
+    return gdfe.Solver(des).solve(V, 1.0, method=res.method, tol=res.tol, max_iter=400, contact=term)
+
+
+def _perturbed_case(res, measure):
+    """What :func:`perturbed` did to ``res`` (seed 0, else the next clear one).
+
+    The relative energy change and ``measure`` (a function of the shape) before and after.
+    """
+    import gdfe
+
+    for seed in range(3):  # a displacement that crosses the film is drawn again
+        st = perturbed(res, seed)
+        if st is not None:
+            break
+    else:
+        raise RuntimeError("three random displacements of 2 um all cross the film: no perturbation test")
+    pen = gdfe.check_penetration(st.points, res.design)
+    return {"amplitude_mm": PERTURB_MM, "converged": bool(st.converged), "iterations": int(st.iterations),
+            "energy_change_rel": float((st.energies[-1] - res.energy) / abs(res.energy)),
+            "before": measure(res.points), "after": measure(st.points), "penetration": pen.as_dict(),
+            "_points": st.points}
+
+
 # -- the parts -----------------------------------------------------------------------------------
 
 def _case(res, design=None):
@@ -159,9 +216,11 @@ def _hinges():
         for key, des in ((f"{L:g}", gdfe.hinge(L, d=D)), (f"{L:g} offset", offset_hinge(L))):
             free = gdfe.simulate(des, contact="off")
             con = gdfe.simulate(des, contact="on")
+            moved = _perturbed_case(con, lambda pts, des=des: _fold(pts, des))
             out[key] = {"L_mm": L, "panel_b_mm": float(des.meta.get("panel_b_mm", des.meta["panel_length_mm"])),
                         "eq1_rad": float(gdfe.Calibration().alpha(L, D)), "free": _case(free),
-                        "contact": _case(con), "_shapes": (free.points, con.points, des)}
+                        "contact": _case(con), "perturbed": _public(moved),
+                        "_shapes": (free.points, con.points, des)}
     return out
 
 
@@ -193,8 +252,28 @@ def _box(pixel):
         res = gdfe.simulate(des, contact=mode)
         folds, corners = _wall_measures(res.points, des)
         out[mode] = {**_case(res), "wall_folds_rad": folds, "corner_gaps_mm": corners, "_points": res.points}
+
+    def measure(pts):
+        folds, corners = _wall_measures(pts, des)
+        return {"wall_folds_rad": folds, "corner_gaps_mm": corners}
+
+    moved = _perturbed_case(res, measure)
+    out["perturbed"] = _public(moved)
+    out["_perturbed_points"] = moved["_points"]
     out["_design"] = des
     return out
+
+
+def _fold(points, design):
+    """The fold angle [rad] of a hinge's shape."""
+    import gdfe
+
+    return {"alpha_rad": float(gdfe.fold_angle(points, design))}
+
+
+def _public(d):
+    """``d`` without its keys that start with an underscore (None stays None)."""
+    return None if d is None else {k: v for k, v in d.items() if not k.startswith("_")}
 
 
 def _table1(rows, onset_steps):
@@ -239,32 +318,54 @@ def _table1(rows, onset_steps):
                                                                               contact="off")))}}
 
 
+def _interleaved(runs, repeats):
+    """Run every function of ``runs`` (name -> function) once per round, ``repeats`` rounds.
+
+    Returns name -> (wall seconds, CPU seconds, last result): the rounds interleave the runs, so
+    a change in the machine's load falls on all of them alike.
+    """
+    out = {name: ([], [], None) for name in runs}
+    for _ in range(repeats):
+        for name, fn in runs.items():
+            w0, c0 = time.perf_counter(), time.process_time()
+            res = fn()
+            walls, cpus, _ = out[name]
+            walls.append(time.perf_counter() - w0)
+            cpus.append(time.process_time() - c0)
+            out[name] = (walls, cpus, res)
+    return out
+
+
 def _cost(settings):
     import gdfe
     from studies.bench import SHEET_PIXEL, SHEET_R, mask_sheet
 
-    repeats = settings["repeats"]
     load_start = list(os.getloadavg())
     rows = []
     for kind, sizes in settings["cost"].items():
-        for size in sizes:
+        for size, repeats in sizes:
             if kind == "touching":
                 des = box_design(size)
             else:
                 des = gdfe.from_masks(*mask_sheet(size), SHEET_PIXEL, SHEET_R, h=H, nz=1)
             row = {"kind": kind, "design": "box" if kind == "touching" else "corrugated sheet",
-                   "n_cells": int(des.n_cells), "repeats": repeats}
-            for mode in ("off", "auto", "on"):
-                med, times, res = median_time(lambda: gdfe.simulate(des, contact=mode), repeats)
-                row[mode] = {"median_s": med, "seconds": times, "iterations": int(res.iterations),
+                   "n_cells": int(des.n_cells), "repeats": repeats, "load_average_before": list(os.getloadavg())}
+            timed = _interleaved({mode: (lambda mode=mode: gdfe.simulate(des, contact=mode))
+                                  for mode in ("off", "auto", "on")}, repeats)
+            for mode, (walls, cpus, res) in timed.items():
+                row[mode] = {"median_s": statistics.median(walls), "median_cpu_s": statistics.median(cpus),
+                             "seconds": walls, "cpu_seconds": cpus, "iterations": int(res.iterations),
                              "converged": bool(res.converged), "contact": bool(res.contact.used),
+                             "contact_reason": res.contact.reason,
                              "penetration_mm": float(res.summary()["penetration_mm"]),
                              "timings": {k: float(v) for k, v in res.timings.items()}}
-            row["auto_ratio"] = row["auto"]["median_s"] / row["off"]["median_s"]
-            row["on_ratio"] = row["on"]["median_s"] / row["off"]["median_s"]
+            row["load_average_after"] = list(os.getloadavg())
+            for mode in ("auto", "on"):
+                row[f"{mode}_ratio"] = row[mode]["median_s"] / row["off"]["median_s"]
+                row[f"{mode}_cpu_ratio"] = row[mode]["median_cpu_s"] / row["off"]["median_cpu_s"]
             goal = 3.0 if kind == "touching" else 1.2
             row["goal"] = goal
-            row["goal_met"] = bool(row["auto_ratio"] <= goal)
+            row["goal_met"] = bool(max(row["auto_ratio"], row["auto_cpu_ratio"]) <= goal)
             rows.append(row)
     return {"rows": rows, "machine": {"load_average_start": load_start, "load_average": list(os.getloadavg()),
                                       "cpus": os.cpu_count(),
@@ -284,6 +385,10 @@ def run(resolution="default", out=None):
     cost = _cost(cfg)
     h9, h14 = hinges["9"], hinges["14"]
     over = tube["activated 5 % more"]
+    moved = box["perturbed"]
+    moved_hinges = ", ".join(
+        f"{k} mm {v['perturbed']['after']['alpha_rad'] - v['perturbed']['before']['alpha_rad']:+.1e} rad"
+        for k, v in hinges.items() if v["perturbed"])
     saturating = [s for s in table["specimens"] if s["saturates"]]
     hl = [
         headline("9 mm hinge without contact: deepest self-penetration", h9["free"]["penetration"]["depth_mm"],
@@ -312,6 +417,10 @@ def run(resolution="default", out=None):
                  "eq", unit="mm"),
         headline("box with contact: largest gap between neighbouring walls (they meet at the edges)",
                  max(box["on"]["corner_gaps_mm"]), None, 2.0 * (box["on"]["dhat_mm"] or 0.0), "le", unit="mm"),
+        headline("box with contact, moved by 2 um and solved again: deepest self-penetration",
+                 moved["penetration"]["depth_mm"], 0.0, None, "eq", unit="mm"),
+        headline("box with contact, moved by 2 um and solved again: energy change / energy (< 0: it was no minimum)",
+                 moved["energy_change_rel"], None, 0.0, "le"),
         headline("Table 1 specimens whose fold self-contact stops", len(saturating), 0, None, "eq",
                  paper_text=f"saturation diagnosed at alpha_max = {ALPHA_MAX} rad"),
         headline("smallest fold at which Table 1's specimen geometry meets itself", table["onset"]["alpha_meets_rad"],
@@ -321,8 +430,11 @@ def run(resolution="default", out=None):
     converged &= all(c["converged"] for c in (over["on"], over["off"], box["on"], box["off"]))
     converged &= all(s["converged"] for s in table["specimens"])
     largest = max(table["specimens"], key=lambda s: s["alpha_rad"])
-    cost_text = "; ".join(f"{r['design']} {r['n_cells']} cells ({r['kind']}): auto {r['auto_ratio']:.2f}x, "
-                          f"on {r['on_ratio']:.2f}x (goal {r['goal']:g}x: {'met' if r['goal_met'] else 'NOT met'})"
+    cost_text = "; ".join(f"{r['design']} {r['n_cells']} cells ({r['kind']}): auto {r['auto_ratio']:.2f}x wall, "
+                          f"{r['auto_cpu_ratio']:.2f}x CPU; on {r['on_ratio']:.2f}x wall, "
+                          f"{r['on_cpu_ratio']:.2f}x CPU; "
+                          f"{r['on']['iterations']} iterations with contact, {r['off']['iterations']} without "
+                          f"(goal {r['goal']:g}x: {'met' if r['goal_met'] else 'NOT met'})"
                           for r in cost["rows"])
     summary = {
         "paper": "the paper simulates no self-contact; issue 13 asks that no simulated part pass through itself",
@@ -333,7 +445,11 @@ def run(resolution="default", out=None):
                  f"with the second panel 2 mm long: 9 mm {hinges['9 offset']['contact']['alpha_rad']:.2f} rad, 14 mm "
                  f"{hinges['14 offset']['contact']['alpha_rad']:.2f} rad; "
                  f"box walls fold {', '.join(f'{v:.2f}' for v in box['on']['wall_folds_rad'].values())} rad with "
-                 f"contact (free {', '.join(f'{v:.2f}' for v in box['off']['wall_folds_rad'].values())}); "
+                 f"contact (free {', '.join(f'{v:.2f}' for v in box['off']['wall_folds_rad'].values())}), moved by "
+                 f"{PERTURB_MM * 1e3:g} um and solved again "
+                 f"{', '.join(f'{v:.2f}' for v in moved['after']['wall_folds_rad'].values())} rad (energy "
+                 f"{moved['energy_change_rel']:+.1e} of itself, walls {max(moved['after']['corner_gaps_mm']):.3f} mm "
+                 f"apart at most); hinge folds moved by {PERTURB_MM * 1e3:g} um and solved again: {moved_hinges}; "
                  f"Table 1: largest fold {largest['alpha_rad']:.2f} rad (L = {largest['L_mm']} mm), the specimen "
                  f"geometry first meets itself at {table['onset']['alpha_meets_rad']:.2f} rad; cost: {cost_text}"),
         "verdict": ("no result with contact passes through itself; self-contact does not explain Table 1's "
@@ -341,7 +457,10 @@ def run(resolution="default", out=None):
                     f"{table['onset']['alpha_meets_rad']:.2f} rad, against alpha_max = {ALPHA_MAX} rad)"),
         "discrepancy": ("where the film meets itself the shape depends on the path: the contact solve follows "
                         "the activation in levels; a part symmetric about where it meets can stop with its ends "
-                        "butting (a local minimum) where a real, never quite symmetric part would slide on"),
+                        "butting (a local minimum) where a real, never quite symmetric part would slide on, or, "
+                        "like the box's four walls butting corner to corner, at a state only symmetry holds: moved "
+                        f"by {PERTURB_MM * 1e3:g} um it goes on to an energy {-moved['energy_change_rel']:.1e} of "
+                        "itself lower"),
     }
     result = {"study": NAME, "figure": "Self-contact (issue 13)", "title": "self-contact: rolls, tubes, boxes, Table 1",
               "resolution": resolution, "h_mm": H,
@@ -404,8 +523,9 @@ def plot(result, out):
     ax = fig.add_subplot(3, 4, 12)
     rows = result["cost"]["rows"]
     x = np.arange(len(rows))
-    ax.bar(x - 0.2, [r["auto_ratio"] for r in rows], 0.4, label="contact='auto' / 'off'")
-    ax.bar(x + 0.2, [r["on_ratio"] for r in rows], 0.4, label="contact='on' / 'off'")
+    for j, (key, label) in enumerate((("auto_ratio", "'auto' / 'off', wall"), ("auto_cpu_ratio", "'auto' / 'off', CPU"),
+                                      ("on_ratio", "'on' / 'off', wall"), ("on_cpu_ratio", "'on' / 'off', CPU"))):
+        ax.bar(x - 0.3 + 0.2 * j, [r[key] for r in rows], 0.2, label=label)
     for i, r in enumerate(rows):
         ax.plot([i - 0.4, i + 0.4], [r["goal"]] * 2, "k--", lw=0.8)
     ax.set_xticks(x, [f"{r['design']}\n{r['n_cells']}" for r in rows], fontsize=6)

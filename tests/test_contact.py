@@ -4,7 +4,9 @@ References: hand-computed geometry (a plate laid into another by a known depth, 
 segment-triangle and closest-point cases), the barrier's closed form ``b(d)`` (the contact
 energy is an integer number of pairs times ``kappa b(d)`` for two parallel plates),
 invariants (rigid motions, energy never increasing, no trial shape ever crossing itself),
-the contact-free path unchanged (bit-identical), and the IPC Toolkit's own intersection test.
+the contact-free path unchanged (bit-identical), ``contact="auto"`` equal to ``"on"`` where the
+film meets itself, the barrier from a step's candidates equal to one built anew, and the IPC
+Toolkit's own intersection test.
 """
 
 import json
@@ -16,7 +18,7 @@ import pytest
 
 import gdfe
 from gdfe.cli import main
-from gdfe.solver.contact import Contact, barrier, contact_patches, default_dhat, require_ipctk
+from gdfe.solver.contact import CCD_TIGHT_INCLUSION, Contact, barrier, contact_patches, default_dhat, require_ipctk
 from gdfe.solver.penetration import (PenetrationCheck, check_penetration, point_triangle_closest,
                                      segments_cross_triangles)
 
@@ -180,6 +182,7 @@ def test_barrier_closed_form_and_forces_vanish_beyond_the_gap():
 
 
 def test_barrier_is_invariant_under_rigid_motions():
+    """A rigid motion of the shape and the step changes no energy, rotates forces and Hessian, keeps the step limit."""
     _ipctk()
     des, X = _plates(gap=0.01)
     c = Contact(des)
@@ -190,6 +193,27 @@ def test_barrier_is_invariant_under_rigid_motions():
     a, b = c.evaluate(X), c.evaluate(Y)
     assert b.energy == pytest.approx(a.energy, rel=1e-10)
     np.testing.assert_allclose(c.gradient(b), c.gradient(a) @ Q.T, atol=1e-12 * np.abs(c.gradient(a)).max())
+    # Hessian: H_Y = (I (x) Q) H_X (I (x) Q)^T, vertex-major; plate b tilted by 0.02 rad and moved
+    # sideways, as parallel edges' closest-point type is decided by round-off (and with it the Hessian)
+    des, X = _plates(gap=0.01, shift=(0.05, 0.03))
+    b = X[:, 2] > H + 0.005
+    yb, zb = X[b, 1] - X[b, 1].mean(), X[b, 2] - X[b, 2].min()
+    X[b, 1], X[b, 2] = X[b, 1].mean() + math.cos(0.02) * yb - math.sin(0.02) * zb, \
+        X[b, 2].min() + math.sin(0.02) * yb + math.cos(0.02) * zb
+    Y = X @ Q.T + [0.3, 0.2, -1.0]
+    a, b = c.evaluate(X), c.evaluate(Y)
+    assert a.active > 0 and b.energy == pytest.approx(a.energy, rel=1e-10)
+    R = np.kron(np.eye(X.shape[0]), Q)
+    for project in (False, True):
+        Ha, Hb = c.hessian(a, project=project).toarray(), c.hessian(b, project=project).toarray()
+        np.testing.assert_allclose(Hb, R @ Ha @ R.T, rtol=0, atol=1e-12 * np.abs(Ha).max())
+    X = _plates(gap=0.01)[1]
+    Y = X @ Q.T + [0.3, 0.2, -1.0]
+    # the step limit: plate b moves 0.11 mm down onto a, 0.01 mm away: first contact at 1/11 of the move;
+    # both limits below it and apart by less than the CCD's tolerance (1e-3 mm) over the move
+    _, X1 = _plates(overlap=0.1)
+    ax, ay = c.max_step(X, X1), c.max_step(Y, X1 @ Q.T + [0.3, 0.2, -1.0])
+    assert 0.5 / 11 < min(ax, ay) and max(ax, ay) < 1 / 11 and abs(ax - ay) * 0.11 <= CCD_TIGHT_INCLUSION[0]
 
 
 def test_step_limit_stops_plates_before_they_cross():
@@ -201,6 +225,32 @@ def test_step_limit_stops_plates_before_they_cross():
     assert 0.35 < a < 0.5  # contact at 0.5 of the move; the CCD stops at 0.8 of (a bound below) it
     assert not check_penetration(X0 + a * (X1 - X0), des).found
     assert c.max_step(X0, X0 + [0.0, 0.0, 0.01], c.evaluate(X0)) == 1.0  # moving apart (and far): whole
+
+
+def test_barrier_along_a_step_from_its_candidates_equals_a_fresh_one(monkeypatch):
+    """The barrier at trial shapes on a step, built from the step's swept candidates, is the one built anew."""
+    _ipctk()
+    import gdfe.solver.contact as contact_module
+
+    des, X0 = _plates(gap=0.1)
+    _, X1 = _plates(overlap=0.1, shift=(0.03, 0.02))
+    c, fresh = Contact(des), Contact(des)
+    a = c.max_step(X0, X1)
+    assert c._swept is None  # on two small plates the step sweeps over all of them: more candidates than kept
+    monkeypatch.setattr(contact_module, "SWEEP_REUSE", np.inf)
+    a = c.max_step(X0, X1)
+    assert c._swept is not None and 0.35 < a < 0.5
+    for t in (0.5 * a, 0.95 * a, a):  # plate b's bottom 0.1 - 0.2 t above a's top: within dhat beyond t = 0.36
+        X = X0 + t * (X1 - X0)
+        s, f = c.evaluate(X), fresh.evaluate(X)
+        assert s.active == f.active and s.min_distance == f.min_distance and s.active > 0 or t < 0.3
+        assert s.energy == pytest.approx(f.energy, rel=1e-12)
+        g = fresh.gradient(f)
+        np.testing.assert_allclose(c.gradient(s), g, rtol=0, atol=1e-12 * np.abs(g).max())
+    # a shape off the step (plate b moved sideways beyond its swept box) gets a broad phase of its own
+    Y = X0 + 0.5 * a * (X1 - X0)
+    Y[X0[:, 2] > H + 0.05, 0] += 0.1
+    assert c.evaluate(Y).energy == pytest.approx(fresh.evaluate(Y).energy, rel=1e-12)
 
 
 def test_neighbours_and_thickness_never_repel():
@@ -267,11 +317,26 @@ def test_contact_free_path_is_unchanged():
     assert not auto.contact.used and auto.contact.mode == "auto"
 
 
+def test_auto_stops_the_contact_free_solve_where_it_crosses_itself():
+    """contact="auto" switches at the first checked iterate that crosses itself; its result is contact="on"'s."""
+    _ipctk()
+    des = gdfe.hinge(5.0, d=0.33, cell_size=0.5)
+    off = gdfe.simulate(des, contact="off")
+    assert off.penetrates
+    for steps in (1, 3):
+        auto, on = gdfe.simulate(des, steps=steps), gdfe.simulate(des, contact="on", steps=steps)
+        assert auto.contact.used and "where it stopped" in auto.contact.reason
+        assert np.array_equal(auto.points, on.points) and auto.iterations == on.iterations
+        assert not auto.penetrates
+    # the contact-free solve of the first frame crosses itself between iterations 4 and 8 of its 19
+    assert "iteration 8 of frame 1" in gdfe.simulate(des).contact.reason and off.iterations > 8
+
+
 def test_hinge_9mm_with_contact_has_no_penetration():
     _ipctk()
     des = gdfe.hinge(9.0, d=0.33)
     res = gdfe.simulate(des)  # auto: the contact-free solve penetrates, so contact
-    assert res.converged and res.contact.used and "penetrated" in res.contact.reason
+    assert res.converged and res.contact.used and "the contact-free solve crossed itself" in res.contact.reason
     p = res.penetration
     assert not res.penetrates and 0.0 < p.min_gap_mm <= res.contact.dhat_mm
     alpha = gdfe.fold_angle(res)

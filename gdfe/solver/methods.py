@@ -87,7 +87,7 @@ class Solver(LocalGlobal):
         return linearised_start(self, self.reduced_hessian, V, activation)
 
     def solve(self, V0, activation=1.0, method="newton", tol=1e-7, max_iter=200, history=6,
-              contact=None, on_drift="warn") -> SolveStats:
+              contact=None, on_drift="warn", monitor=None) -> SolveStats:
         """Minimise Eq. 5 from ``V0`` (plus the self-contact barrier, with ``contact``).
 
         Parameters
@@ -110,6 +110,9 @@ class Solver(LocalGlobal):
         on_drift : {"warn", "stop"}
             What a Newton solve does when it drifts between near-equal states
             (:func:`gdfe.solver.newton.solve_newton`).
+        monitor : callable, optional
+            Newton methods without contact: called with each accepted iterate, see
+            :func:`gdfe.solver.newton.solve_newton` (ignored by the alternation methods).
 
         Returns
         -------
@@ -131,10 +134,10 @@ class Solver(LocalGlobal):
         if method == "newton":
             directions = factorised_directions(self.reduced_hessian, self.rest(activation))
             return solve_newton(self, V0, activation, tol, max_iter, directions, contact=contact,
-                                on_drift=on_drift)
+                                on_drift=on_drift, monitor=monitor)
         if method == "newton-cg":
             directions = cg_directions(self.reduced_hessian, self.rest(activation))
             return solve_newton(self, V0, activation, tol, max_iter, directions, alphas=(1.0, 0.5, 0.25),
-                                contact=contact, on_drift=on_drift)
+                                contact=contact, on_drift=on_drift, monitor=monitor)
         return solve_alternation(self, V0, activation, tol, max_iter, anderson=method == "anderson",
                                  history=history)

@@ -388,7 +388,8 @@ def _solve_free(steps, F):
     return out
 
 
-def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,), contact=None, on_drift="warn"):
+def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,), contact=None, on_drift="warn",
+                 monitor=None):
     """Damped Newton on the rotation-reduced energy; the outer loop of both Newton methods.
 
     Parameters
@@ -421,6 +422,10 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
     on_drift : {"warn", "stop"}
         What to do when the solve drifts (see below): log a warning and go on, or stop
         there (the solve is then not converged).
+    monitor : callable, optional
+        Without contact: called with the iteration number and each accepted iterate
+        ``(n, 3)`` [mm]; an exception it raises ends the solve (``contact="auto"`` stops a
+        contact-free solve there once it passes through itself, see :func:`gdfe.simulate`).
 
     Returns
     -------
@@ -570,6 +575,8 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
         log.debug("newton %d: residual %.3e, error estimate %.3e, energy %.6e, mu %.1e",
                   it, res, error, E, mu)
         energies.append(E)
+        if monitor is not None and contact is None:
+            monitor(it, V)
         if it - anchor[0] >= DRIFT_WINDOW:
             fell = (anchor[1] - E) / max(abs(E), 1e-300)
             if fell < DRIFT_ENERGY and error > STEP_TOL_FACTOR * tol and not error < DRIFT_SHRINK * anchor[2]:

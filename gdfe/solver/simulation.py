@@ -8,6 +8,7 @@ each solved by one :class:`gdfe.solver.Solver` from the last.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 import time
 
@@ -24,7 +25,8 @@ from gdfe.solver.penetration import Penetration, PenetrationCheck
 from gdfe.solver.starts import flat_start, multilevel_start
 
 __all__ = ["Result", "ConvergenceError", "simulate", "INITS", "MULTILEVEL_CELLS", "CONTACT_LEVELS",
-           "CONTACT_LEVEL_TOL", "CONTACT_LEVEL_ITER", "SHAPE_ACCURACY", "ALTERNATION_TOL", "TRUSTED_TOL", "default_tol"]
+           "CONTACT_LEVEL_TOL", "CONTACT_LEVEL_ITER", "AUTO_CHECK_EVERY", "SHAPE_ACCURACY", "ALTERNATION_TOL",
+           "TRUSTED_TOL", "default_tol"]
 
 log = logging.getLogger(__name__)
 
@@ -41,6 +43,11 @@ CONTACT_LEVEL_TOL = 1e-2
 #: Iteration limit of an added level, and of the solves that make a start free of
 #: self-intersection (the same reason).
 CONTACT_LEVEL_ITER = 10
+#: ``contact="auto"`` tests every this many iterates of a contact-free Newton solve, and every
+#: frame but the last (the penetration check follows it), for self-intersection (the IPC
+#: Toolkit's test, which costs about a tenth of a Newton iteration), and solves with contact as
+#: soon as one crosses itself, without finishing the contact-free solve.
+AUTO_CHECK_EVERY = 4
 #: With ``tol=None`` a Newton solve stops when its estimated distance to the solution is below
 #: this fraction of the part's size (the diagonal of the flat print's bounding box): far below
 #: what a printer or a scan resolves, far above round-off (the stopping study, ``gdfe study
@@ -106,7 +113,8 @@ class Result:
     timings : dict
         Seconds spent in the factorisation, the orientation and assembly steps, the
         Newton steps (``"newton"``), the multilevel start (``"start"``), the penetration
-        checks (``"penetration_check"``), and with contact the barrier (``"barrier"``),
+        checks (``"penetration_check"``, with ``contact="auto"``'s crossing tests), and with
+        contact the barrier (``"barrier"``),
         collision detection (``"ccd"``) and the contact-free solve that came first
         (``"contact_free_solve"``, ``contact="auto"``).
     penetration : Penetration
@@ -242,7 +250,10 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
         ``"auto"`` (default): the contact-free solve, checked for self-penetration on
         every frame, and solved again with contact only when it penetrates - so nothing
         slows down where nothing touches, and nothing that passes through itself is
-        returned as an answer while contact is installed. ``"on"``: every frame with
+        returned as an answer while contact is installed. The contact-free Newton solve is
+        tested for self-intersection every :data:`AUTO_CHECK_EVERY` iterations and at the end
+        of every frame but the last, and stops at the first that crosses itself: the contact solve then starts
+        at once, and its result is that of ``"on"``. ``"on"``: every frame with
         contact. ``"off"``: no contact; a result that penetrates itself is logged as a
         warning. Every result carries the check (:attr:`Result.penetration`). A contact
         solve uses a Newton method (``"auto"``'s choice where ``method`` is an
@@ -316,18 +327,28 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
     opts = dict(init=init, start=None if start is None else (start, float(acts[1])), seed=seed, tol=tol,
                 max_iter=max_iter, history=history, on_drift=on_drift)
     term = Contact(design, dhat) if contact == "on" else None
-    run = _run_frames(solver, acts, method, term, **opts)
+    available = contact_available()
+    watch = _Watch(design, dhat) if contact == "auto" and available else None
     timings = {}
-    pens, t_check = _check_frames(check, run.frames)
-    report = ContactReport(mode=contact, used=term is not None, available=contact_available(),
+    try:
+        run = _run_frames(solver, acts, method, term, monitor=watch, **opts)
+    except _Crossed as stop:
+        run, pens, t_check, crossed = None, [], 0.0, stop.reason
+    else:
+        pens, t_check = _check_frames(check, run.frames)
+        crossed = None
+        if any(p.found for p in pens):
+            worst = max(pens, key=lambda p: p.depth_mm)
+            crossed = f"the contact-free solve penetrated itself ({worst.depth_mm:.3g} mm)"
+    if watch is not None:
+        t_check += watch.seconds
+    report = ContactReport(mode=contact, used=term is not None, available=available,
                            reason="contact='on'" if term is not None else "")
-    if contact == "auto" and any(p.found for p in pens):
-        worst = max(pens, key=lambda p: p.depth_mm)
-        if report.available:
-            log.info("the contact-free solve passes through itself (%d crossing face pairs, %.3g mm deep); "
-                     "solving again with contact", worst.intersecting_pairs, worst.depth_mm)
+    if contact == "auto" and crossed:
+        if available:
+            log.info("the contact-free solve passes through itself (%s); solving again with contact", crossed)
             timings["contact_free_solve"] = time.perf_counter() - t0
-            term = Contact(design, dhat)
+            term = watch.contact
             cmethod = method if method.startswith("newton") else auto_method(design)
             if cmethod != method:
                 log.info("contact solve with method=%r (the contact solve needs a Newton method)", cmethod)
@@ -335,8 +356,7 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
             run = _run_frames(solver, acts, method, term, **opts)
             pens, t2 = _check_frames(check, run.frames)
             t_check += t2
-            report = ContactReport(mode=contact, used=True, available=True,
-                                   reason=f"the contact-free solve penetrated itself ({worst.depth_mm:.3g} mm)")
+            report = ContactReport(mode=contact, used=True, available=True, reason=crossed)
         else:
             report = ContactReport(mode=contact, used=False, available=False,
                                    reason="the contact-free solve penetrates itself but the IPC Toolkit is not "
@@ -364,6 +384,41 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
                   method=method, timings=timings, penetration=pens[-1], contact=report, frame_penetration=pens,
                   tol=tol, error_estimate_mm=None if run.error_estimate is None else run.error_estimate * design.h,
                   drift=run.drift)
+
+
+class _Crossed(Exception):
+    """Raised by :class:`_Watch` to end a contact-free solve that crosses itself; ``reason`` says where."""
+
+    def __init__(self, reason):
+        super().__init__(reason)
+        self.reason = reason
+
+
+class _Watch:
+    """The self-intersection test of ``contact="auto"`` on a contact-free run (see :data:`AUTO_CHECK_EVERY`).
+
+    Called with the frame, the Newton iteration (None at the end of a frame) and the shape;
+    raises :class:`_Crossed` when the shape's boundary surface crosses itself (the IPC
+    Toolkit's test on the :class:`Contact` surface, which the contact solve then uses).
+    """
+
+    def __init__(self, design, dhat):
+        self.design, self.dhat = design, dhat
+        self.contact = None
+        self.seconds = 0.0
+
+    def __call__(self, frame, iteration, V):
+        if iteration is not None and iteration % AUTO_CHECK_EVERY:
+            return
+        t0 = time.perf_counter()
+        if self.contact is None:
+            self.contact = Contact(self.design, self.dhat)
+        crosses = self.contact.crosses(V)
+        self.seconds += time.perf_counter() - t0
+        if crosses:
+            where = "at the end of frame %d" % frame if iteration is None else \
+                "at iteration %d of frame %d, where it stopped" % (iteration, frame)
+            raise _Crossed(f"the contact-free solve crossed itself {where}")
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -432,8 +487,13 @@ def _clear_start(solver, term, init, start, seed, a, method, max_iter, depth=0):
     return stats.points, its + stats.iterations
 
 
-def _run_frames(solver, acts, method, term, *, init, start, seed, tol, max_iter, history, on_drift="warn"):
-    """Solve every frame of the ramp ``acts``, each from the last (with contact: through added levels)."""
+def _run_frames(solver, acts, method, term, *, init, start, seed, tol, max_iter, history, on_drift="warn",
+                monitor=None):
+    """Solve every frame of the ramp ``acts``, each from the last (with contact: through added levels).
+
+    ``monitor`` (contact-free runs): called as ``monitor(frame, iteration, V)`` with every
+    accepted Newton iterate and (``iteration`` None) every frame; see :class:`_Watch`.
+    """
     design = solver.design
     V = design.mesh.points.copy()
     frames = [V.copy()]
@@ -444,8 +504,11 @@ def _run_frames(solver, acts, method, term, *, init, start, seed, tol, max_iter,
         if term is None:
             if k == 0:
                 V = _first_start(solver, design, init, start, seed, a)
+            watch = None if monitor is None else functools.partial(monitor, k + 1)
             stats = solver.solve(V, a, method=method, tol=tol, max_iter=max_iter, history=history,
-                                 on_drift=on_drift)
+                                 on_drift=on_drift, monitor=watch)
+            if monitor is not None and k + 2 < len(acts):  # the last frame: the penetration check follows
+                monitor(k + 1, None, stats.points)
         else:
             a_prev = acts[k]
             n_levels = max(1, int(np.ceil(CONTACT_LEVELS * (a - a_prev) - 1e-9)))
