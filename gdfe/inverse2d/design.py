@@ -271,14 +271,16 @@ class SurfaceDesign:
     sigma : float
     reachability : Reachability
     closest : dict or None
-        The closest target of the same kind within reach (``t``, its parameters) where the
-        target is out of reach.
+        The closest target of the same kind within reach where the target is out of reach:
+        ``t`` (its curvature over the target's), ``params``, ``text`` and ``distance`` (its
+        patch from the target's after rigid alignment, :meth:`Distance.as_dict`).
     rho : (m, 2) float array
         The relaxed coating fractions (top, bottom) after the filter.
     top, bottom : (nx, ny) bool arrays
         The printable masks (True = coated).
-    relaxed, printable : gdfe.Result
-        The forward checks (from the flat print, :func:`gdfe.simulate`).
+    relaxed, printable, initial : gdfe.Result
+        The forward checks (from the flat print, :func:`gdfe.simulate`) of the relaxed design,
+        the printed one and the optimisation's start.
     relaxed_distance, printable_distance : Distance
     initial_distance : Distance
         The fold of step 1's estimate (the optimisation's start), for comparison.
@@ -304,6 +306,8 @@ class SurfaceDesign:
         The RMS distance below which the target counts as reached.
     options : dict
         The choices the design was made with.
+    target_surface : TriangleSurface
+        The target's patch the distances are measured to.
     """
 
     target: Target
@@ -316,6 +320,7 @@ class SurfaceDesign:
     bottom: np.ndarray
     relaxed: object
     printable: object
+    initial: object
     relaxed_distance: Distance
     printable_distance: Distance
     initial_distance: Distance
@@ -330,6 +335,7 @@ class SurfaceDesign:
     masks_ok: bool
     tolerance_mm: float
     options: dict
+    target_surface: object = None
 
     @property
     def reached(self) -> bool:
@@ -346,7 +352,8 @@ class SurfaceDesign:
             return (f"reached: the printed fold is within {d.rms_mm:.3g} mm RMS ({d.max_mm:.3g} mm max) of the "
                     f"target, tolerance {self.tolerance_mm:.3g} mm")
         why = (f"the target is {self.reachability.text()}" if not self.reachability.reachable
-               else "the target is within the estimate's reach, but the fold found does not get there")
+               else "the target is within the estimate's reach, but the fold found does not get there"
+               + (f": {self.target.note}" if self.target.note else ""))
         near = ""
         if self.closest is not None:
             near = f"; the closest target of this kind within reach: {self.closest['text']}"
@@ -354,10 +361,18 @@ class SurfaceDesign:
                 f"max, Hausdorff {d.hausdorff_mm:.3g} mm), tolerance {self.tolerance_mm:.3g} mm; {why}{near}")
 
     def summary(self) -> dict:
-        """The numbers for JSON: the printed fold's distance at the top level (``rms_mm``, ``max_mm``, ``hausdorff_mm``)."""
+        """The numbers for JSON.
+
+        At the top level: the printed fold's distance (``rms_mm``, ``max_mm``, ``hausdorff_mm``,
+        ``target_rms_mm``), whether it ``converged`` and ``reached`` the target, the ``verdict``,
+        the L-BFGS-B ``iterations`` and ``evaluations``; ``relaxed`` and ``initial`` (the start)
+        hold the same distances of the relaxed design's and the start's folds.
+        """
         pd_, rd, idist = self.printable_distance, self.relaxed_distance, self.initial_distance
         return {
-            **pd_.as_dict(), "reached": self.reached, "tolerance_mm": self.tolerance_mm, "verdict": self.verdict(),
+            **pd_.as_dict(), "converged": bool(self.printable.converged), "reached": self.reached,
+            "tolerance_mm": self.tolerance_mm, "verdict": self.verdict(),
+            "iterations": self.iterations, "evaluations": self.evaluations,
             "target": self.target.summary(), "sigma": self.sigma, "reachability": self.reachability.as_dict(),
             "closest_reachable": self.closest,
             "film": {"nx": self.film.shape[0], "ny": self.film.shape[1], "pixel_mm": self.film.pixel,
@@ -373,12 +388,19 @@ class SurfaceDesign:
                           "masks_respect_w_min": bool(self.masks_ok)},
             "relaxed": {**rd.as_dict(), "converged": bool(self.relaxed.converged),
                         "optimised_rms_mm": self.optimised_rms_mm},
-            "initial": idist.as_dict(),
-            "optimisation": {"iterations": self.iterations, "evaluations": self.evaluations, "message": self.message,
+            "initial": {**idist.as_dict(), "converged": bool(self.initial.converged)},
+            "optimisation": {"message": self.message,
                              "solver_warnings": self.solver_warnings, "unconverged_folds": self.unconverged_folds,
                              "history": self.history},
             "seconds": self.seconds, "options": self.options,
         }
+
+
+def _target_gap(near, film, surf):
+    """Distance of target ``near``'s patch (at its own scale on ``film``) from the patch ``surf``."""
+    s_near, _ = scale_for(near, film)
+    mid = film.mid
+    return surface_distance(near.point(mid.flat, s_near), mid.triangles, surf)
 
 
 def _distance(result, film, surf, designed):
@@ -406,7 +428,8 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=0.33, h=None, model=Non
         Default the paper's Eq. 3.
     iterations : int
         L-BFGS-B iterations (0: step 1's estimate only).
-    projection : {"halftone", "threshold"}
+    projection : {"halftone", "nested", "threshold"}
+        :func:`gdfe.inverse2d.masks.project`.
     filter_radius : float [mm], optional
         Radius of the density filter on the design variables; default two blocks of ``w_min``
         (the scale a halftone reproduces), 0 for none.
@@ -449,12 +472,16 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=0.33, h=None, model=Non
         mask = np.asarray(target.film_mask(np.column_stack([X.ravel(), Y.ravel()])), bool).reshape(nx, ny)
     film = Film((nx, ny), pixel, h, d, model=model, mask=mask)
     sigma, reach = scale_for(target, film, sigma)
+    surf = patch(target, sigma, target.film_size, min(pixel, size / 100.0), target.film_mask)
     closest = None
     if not reach.reachable:
         t, near = closest_reachable(target, film)
         if near is not None:
-            closest = {"t": t, "params": near.params,
-                       "text": ", ".join(f"{k} {v:.4g}" for k, v in near.params.items()) + f" (curvature x {t:.3g})"}
+            gap = _target_gap(near, film, surf)
+            closest = {"t": t, "params": near.params, "distance": gap.as_dict(),
+                       "text": (", ".join(f"{k} {v:.4g}" for k, v in near.params.items())
+                                + f" (curvature x {t:.3g}), {gap.rms_mm:.3g} mm RMS ({gap.max_mm:.3g} mm max) "
+                                  "from the target")}
     seconds["placement"] = time.perf_counter() - t0
     log.info("inverse2d: %s on %d x %d pixels (%d cells); %s", target.name, nx, ny, film.n_cells, reach.text())
 
@@ -511,10 +538,9 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=0.33, h=None, model=Non
     seconds["optimisation"] = time.perf_counter() - t1
 
     t2 = time.perf_counter()
-    surf = patch(target, sigma, target.film_size, min(pixel, size / 100.0), target.film_mask)
     relaxed = gdfe.simulate(film.relaxed(rho))
     rd = _distance(relaxed, film, surf, T)
-    initial = gdfe.simulate(film.relaxed(x0))
+    initial = gdfe.simulate(film.relaxed(rho_of(x0)))
     idist = _distance(initial, film, surf, T)
     seconds["relaxed_check"] = time.perf_counter() - t2
 
@@ -531,8 +557,9 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=0.33, h=None, model=Non
                "objective": "mean squared distance of the mid-surface points from their target points after "
                             "rigid alignment, units of h^2"}
     return SurfaceDesign(target=target, film=film, sigma=sigma, reachability=reach, closest=closest, rho=rho,
-                         top=top, bottom=bottom, relaxed=relaxed, printable=printable, relaxed_distance=rd,
+                         top=top, bottom=bottom, relaxed=relaxed, printable=printable, initial=initial,
+                         relaxed_distance=rd,
                          printable_distance=pd_, initial_distance=idist, optimised_rms_mm=h * math.sqrt(J_best),
                          history=history, iterations=nit, evaluations=state["n"], message=message, seconds=seconds,
                          solver_warnings=quiet.count, unconverged_folds=state["bad"], masks_ok=ok,
-                         tolerance_mm=tol_mm, options=options)
+                         tolerance_mm=tol_mm, options=options, target_surface=surf)
