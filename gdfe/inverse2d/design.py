@@ -52,8 +52,10 @@ from gdfe.inverse2d.film import Film
 from gdfe.inverse2d.masks import PROJECTIONS, block_size, density_filter, min_feature_ok, project
 from gdfe.inverse2d.targets import Target
 from gdfe.measure import rigid_align
+from gdfe.resources import estimate_run
 
-__all__ = ["Reachability", "SurfaceDesign", "scale_for", "closest_reachable", "natural_curvature", "target_start",
+__all__ = ["Reachability", "SurfaceDesign", "scale_for", "closest_reachable", "reachable_sizes", "natural_curvature",
+           "target_start",
            "initial_coating", "Objective", "design_surface", "DEFAULT_ITERATIONS", "FOLD_TOL"]
 
 log = logging.getLogger(__name__)
@@ -197,6 +199,42 @@ def closest_reachable(target, film, t_min=1e-3):
     return lo, target.family(lo)
 
 
+def reachable_sizes(target, film):
+    """For a target of fixed size (a mesh, ``target.sigma`` set): the film sizes within reach of step 1's estimate.
+
+    The film of side ``s'`` covers the same conformal coordinates ``u = sigma p`` as this one with
+    ``sigma' s' = sigma s``, so the metric factor becomes ``lambda = sigma' f(u)`` while the
+    curvature (per mm of the target) stays: the margin is scanned over ``sigma'``.
+
+    Returns
+    -------
+    dict
+        ``size_mm`` (the film size [mm] with the largest margin, scaled from the film's largest side),
+        ``margin`` there, ``sizes_mm`` (``[smallest, largest]`` within reach, or None when none is).
+    """
+    check_instance("target", target, Target)
+    check_instance("film", film, Film)
+    if target.sigma is None:
+        raise GdfeError("target: expected a target of fixed size (a mesh), got an analytic one")
+    p = film.mid.flat
+    s0 = float(target.sigma)
+    f = target.metric_factor(p, s0) / s0
+    dc = film.h * np.abs(natural_curvature(target.second_form(p, s0)))
+
+    def margin(k):
+        lam = k * f
+        half = 0.5 * dc * lam
+        return float(np.min(np.minimum(1.0 - lam - half, film.c0 - half - (1.0 - lam))))
+
+    grid = np.linspace(0.3, 1.05, 301)
+    vals = np.array([margin(k) for k in grid])
+    size = float(max(film.shape) * film.pixel)
+    best = int(np.argmax(vals))
+    ok = grid[vals >= 0]
+    return {"size_mm": size * s0 / float(grid[best]), "margin": float(vals[best]),
+            "sizes_mm": [size * s0 / float(ok.max()), size * s0 / float(ok.min())] if ok.size else None}
+
+
 def initial_coating(target, film, sigma):
     """Step 1's coating fractions ``(m, 2)`` (top, bottom) at the cells, clipped to [0, 1]."""
     cm, dc, _, _ = _needs(target, film.cell_centres, sigma, film.h)
@@ -271,9 +309,11 @@ class SurfaceDesign:
     sigma : float
     reachability : Reachability
     closest : dict or None
-        The closest target of the same kind within reach where the target is out of reach:
-        ``t`` (its curvature over the target's), ``params``, ``text`` and ``distance`` (its
-        patch from the target's after rigid alignment, :meth:`Distance.as_dict`).
+        Where the target is out of reach, the closest within reach, with its ``text``: for an
+        analytic target the one of the same kind (:func:`closest_reachable`: ``t``, its curvature
+        over the target's, ``params`` and ``distance``, its patch from the target's after rigid
+        alignment, :meth:`Distance.as_dict`); for a mesh the film sizes that reach it
+        (:func:`reachable_sizes`).
     rho : (m, 2) float array
         The relaxed coating fractions (top, bottom) after the filter.
     top, bottom : (nx, ny) bool arrays
@@ -356,7 +396,7 @@ class SurfaceDesign:
                + (f": {self.target.note}" if self.target.note else ""))
         near = ""
         if self.closest is not None:
-            near = f"; the closest target of this kind within reach: {self.closest['text']}"
+            near = f"; the closest within reach: {self.closest['text']}"
         return (f"NOT REACHED: the closest fold found misses the target by {d.rms_mm:.3g} mm RMS ({d.max_mm:.3g} mm "
                 f"max, Hausdorff {d.hausdorff_mm:.3g} mm), tolerance {self.tolerance_mm:.3g} mm; {why}{near}")
 
@@ -462,8 +502,16 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=0.33, h=None, model=Non
     seconds = {}
     t0 = time.perf_counter()
 
-    nx = max(2, int(round(target.film_size[0] / pixel)))
-    ny = max(2, int(round(target.film_size[1] / pixel)))
+    # the film is whole pixels: its sides are the target's rounded to the pixel
+    nx, ny = (int(round(float(v) / pixel)) for v in target.film_size)
+    if min(nx, ny) < 2:
+        raise GdfeError(f"pixel: expected at most half the film's smaller side ({float(min(target.film_size)):g} mm), "
+                        f"got {pixel:g} mm")
+    rect = np.array([nx, ny], float) * pixel
+    est = estimate_run(nx * ny)
+    if not est.fits:
+        raise GdfeError(f"pixel: expected a film that fits in memory, got {nx} x {ny} pixels ({est.text()}); "
+                        "use a larger pixel or a smaller film")
     mask = None
     if target.film_mask is not None:
         x = (np.arange(nx) + 0.5) * pixel - 0.5 * nx * pixel
@@ -472,16 +520,23 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=0.33, h=None, model=Non
         mask = np.asarray(target.film_mask(np.column_stack([X.ravel(), Y.ravel()])), bool).reshape(nx, ny)
     film = Film((nx, ny), pixel, h, d, model=model, mask=mask)
     sigma, reach = scale_for(target, film, sigma)
-    surf = patch(target, sigma, target.film_size, min(pixel, size / 100.0), target.film_mask)
+    surf = patch(target, sigma, rect, min(pixel, size / 100.0), target.film_mask)
     closest = None
-    if not reach.reachable:
+    if not reach.reachable and target.family is not None:
         t, near = closest_reachable(target, film)
         if near is not None:
             gap = _target_gap(near, film, surf)
             closest = {"t": t, "params": near.params, "distance": gap.as_dict(),
-                       "text": (", ".join(f"{k} {v:.4g}" for k, v in near.params.items())
+                       "text": (f"a {near.kind} with " + ", ".join(f"{k} {v:.4g}" for k, v in near.params.items())
                                 + f" (curvature x {t:.3g}), {gap.rms_mm:.3g} mm RMS ({gap.max_mm:.3g} mm max) "
                                   "from the target")}
+    elif not reach.reachable and target.sigma is not None:
+        sizes = reachable_sizes(target, film)
+        text = (f"this {target.kind} on a film of {sizes['size_mm']:.3g} mm (films of {sizes['sizes_mm'][0]:.3g} to "
+                f"{sizes['sizes_mm'][1]:.3g} mm are within reach)" if sizes["sizes_mm"] is not None else
+                f"none: no film size brings this {target.kind} within reach (best margin {sizes['margin']:.3f} at "
+                f"{sizes['size_mm']:.3g} mm)")
+        closest = {**sizes, "text": text}
     seconds["placement"] = time.perf_counter() - t0
     log.info("inverse2d: %s on %d x %d pixels (%d cells); %s", target.name, nx, ny, film.n_cells, reach.text())
 
