@@ -341,11 +341,11 @@ def _distance_text(d):
 def _text_target(ch, r, out, files):
     film = r.film
     lines = ["gdfe design --target: choices", ch.text()]
-    lines.append(f"  film: {film.shape[0]} x {film.shape[1]} pixels, {film.n_cells} cells; a free face contracts "
-                 f"by c0 = {film.c0:.4f}")
+    lines.append(f"  film: {film.shape[0]} x {film.shape[1]} pixels = {film.shape[0] * film.pixel:.4g} x "
+                 f"{film.shape[1] * film.pixel:.4g} mm, {film.n_cells} cells; a free face contracts by c0 = {film.c0:.4f}")
     lines.append(f"  placement: sigma {r.sigma:.4g}; reachability: {r.reachability.text()}")
     if r.closest is not None:
-        lines.append(f"  closest target of this kind within reach: {r.closest['text']}")
+        lines.append(f"  closest within reach: {r.closest['text']}")
     lines.append(f"  optimisation: {r.iterations} L-BFGS-B iterations, {r.evaluations} evaluations (fold + adjoint), "
                  f"{r.seconds['optimisation']:.1f} s; {r.message}"
                  + (f"; {r.unconverged_folds} folds did not converge" if r.unconverged_folds else ""))
