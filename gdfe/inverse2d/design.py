@@ -20,7 +20,10 @@ The method, in four steps (each measured by ``gdfe study inverse2d``):
    with the gradient through the GDFE equilibrium by the adjoint method
    (:mod:`gdfe.inverse2d.adjoint`: one sparse solve with the exact Hessian per evaluation). Each
    fold starts from the last one; the first from the target's shape (the flat print of a film
-   that only contracts in its plane is an equilibrium, which a start from it would keep).
+   that only contracts in its plane is an equilibrium, which a start from it would keep). A
+   film can have several equilibria (a saddle and the same saddle turned by 90 degrees share
+   their metric and mean curvature): where the design, folded from the flat print as in the
+   oven, lands on another one, a second optimisation folds every evaluation from the flat print.
 3. **Printable masks**: the relaxed fractions are halftoned in blocks of ``w_min``
    (:func:`gdfe.inverse2d.masks.halftone`); ``projection="threshold"`` is the topology
    optimiser's 1/2 threshold instead.
@@ -55,13 +58,19 @@ from gdfe.measure import rigid_align
 from gdfe.resources import estimate_run
 
 __all__ = ["Reachability", "SurfaceDesign", "scale_for", "closest_reachable", "reachable_sizes", "natural_curvature",
-           "target_start",
-           "initial_coating", "Objective", "design_surface", "DEFAULT_ITERATIONS", "FOLD_TOL"]
+           "target_start", "initial_coating", "Objective", "design_surface", "DEFAULT_ITERATIONS", "FOLD_TOL",
+           "BRANCH_RATIO", "BRANCH_FLOOR"]
 
 log = logging.getLogger(__name__)
 
 #: L-BFGS-B iterations of :func:`design_surface` by default.
 DEFAULT_ITERATIONS = 60
+#: The optimisation's folds continue from the last one (smooth, and cheap); where the design then folds
+#: from the flat print more than BRANCH_RATIO times as far from the target (RMS) as on the continued
+#: folds, and by more than BRANCH_FLOOR of the tolerance, the flat print takes another branch (a saddle
+#: turned by 90 degrees, a dome inside out): a second optimisation folds every evaluation from the flat print.
+BRANCH_RATIO = 2.0
+BRANCH_FLOOR = 0.1
 #: Tolerance (units of h) of the folds inside the optimisation: the adjoint gradient is as
 #: accurate as the equilibrium (the gradient test checks it at this tolerance).
 FOLD_TOL = 1e-8
@@ -348,6 +357,10 @@ class SurfaceDesign:
         The choices the design was made with.
     target_surface : TriangleSurface
         The target's patch the distances are measured to.
+    branch : dict or None
+        The optimised design's objective as an RMS [mm] on the continued folds and folded from
+        the flat print, and whether a second optimisation from the flat print followed
+        (:data:`BRANCH_RATIO`); None without optimisation.
     """
 
     target: Target
@@ -376,6 +389,7 @@ class SurfaceDesign:
     tolerance_mm: float
     options: dict
     target_surface: object = None
+    branch: dict | None = None
 
     @property
     def reached(self) -> bool:
@@ -429,7 +443,7 @@ class SurfaceDesign:
             "relaxed": {**rd.as_dict(), "converged": bool(self.relaxed.converged),
                         "optimised_rms_mm": self.optimised_rms_mm},
             "initial": {**idist.as_dict(), "converged": bool(self.initial.converged)},
-            "optimisation": {"message": self.message,
+            "optimisation": {"message": self.message, "branch": self.branch,
                              "solver_warnings": self.solver_warnings, "unconverged_folds": self.unconverged_folds,
                              "history": self.history},
             "seconds": self.seconds, "options": self.options,
@@ -467,7 +481,9 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=0.33, h=None, model=Non
     model : DeformationModel or path, optional
         Default the paper's Eq. 3.
     iterations : int
-        L-BFGS-B iterations (0: step 1's estimate only).
+        L-BFGS-B iterations (0: step 1's estimate only), of each phase: the folds continue from the
+        last one, and where the flat print folds onto another branch a second phase folds every
+        evaluation from the flat print (:data:`BRANCH_RATIO`).
     projection : {"halftone", "nested", "threshold"}
         :func:`gdfe.inverse2d.masks.project`.
     filter_radius : float [mm], optional
@@ -546,7 +562,7 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=0.33, h=None, model=Non
     F = density_filter(film.cell_centres, radius)
     x0 = initial_coating(target, film, sigma)
     # step 1's estimate is smooth: the filter leaves it almost as it is
-    state = {"V": target_start(target, film, sigma), "best": (np.inf, x0), "n": 0, "bad": 0}
+    state = {"V": target_start(target, film, sigma), "best": (np.inf, x0), "n": 0, "bad": 0, "flat": False}
     history = []
 
     def rho_of(x):
@@ -554,7 +570,7 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=0.33, h=None, model=Non
 
     def fun(xflat):
         x = xflat.reshape(-1, 2)
-        f = fold(film.relaxed(rho_of(x)), start=state["V"], tol=FOLD_TOL)
+        f = fold(film.relaxed(rho_of(x)), start=None if state["flat"] else state["V"], tol=FOLD_TOL)
         state["n"] += 1
         if not f.converged:
             state["bad"] += 1
@@ -566,7 +582,8 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=0.33, h=None, model=Non
         if J < state["best"][0] and f.converged:
             state["best"] = (J, x.copy())
         rec = {"evaluation": state["n"], "J": J, "rms_mm": h * math.sqrt(J), "fold_iterations": f.iterations,
-               "converged": f.converged, "seconds": time.perf_counter() - t1}
+               "converged": f.converged, "seconds": time.perf_counter() - t1,
+               "folds_from": "flat print" if state["flat"] else "last fold"}
         history.append(rec)
         if callback is not None:
             callback(rec)
@@ -577,13 +594,34 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=0.33, h=None, model=Non
     solver_log.addFilter(quiet)
     for name in ("gdfe.solver.newton", "gdfe.solver.simulation"):
         logging.getLogger(name).addFilter(quiet)
+    def optimise(x_start):
+        res = minimize(fun, x_start.ravel(), jac=True, method="L-BFGS-B", bounds=[(0.0, 1.0)] * x0.size,
+                       options={"maxiter": iterations, "ftol": 1e-12, "gtol": 1e-10, "maxcor": 20})
+        return int(res.nit), str(res.message)
+
+    branch = None
     try:
-        J0, _ = fun(x0.ravel())
+        fun(x0.ravel())
         nit, message = 0, "no optimisation (iterations=0)"
         if iterations > 0:
-            res = minimize(fun, x0.ravel(), jac=True, method="L-BFGS-B", bounds=[(0.0, 1.0)] * x0.size,
-                           options={"maxiter": iterations, "ftol": 1e-12, "gtol": 1e-10, "maxcor": 20})
-            nit, message = int(res.nit), str(res.message)
+            nit, message = optimise(x0)
+            # the oven folds the print from flat: is that the branch the folds continued on?
+            J_cont, x_cont = state["best"]
+            f = fold(film.relaxed(rho_of(x_cont)), tol=FOLD_TOL)
+            J_flat = objective(f.points)[0] if f.converged else np.inf
+            rms_cont, rms_flat = h * math.sqrt(J_cont), h * math.sqrt(J_flat)
+            switch = rms_flat > BRANCH_RATIO * rms_cont and rms_flat > BRANCH_FLOOR * tol_mm
+            branch = {"continued_rms_mm": rms_cont, "flat_print_rms_mm": rms_flat, "second_phase": bool(switch)}
+            if switch:
+                log.info("inverse2d: from the flat print the design folds %.3g mm RMS from the target against %.3g "
+                         "mm on the folds continued from the target's shape: a second optimisation, every fold "
+                         "from the flat print", rms_flat, rms_cont)
+                state["flat"] = True
+                state["best"] = (J_flat, x_cont)
+                nit2, message2 = optimise(x_cont)
+                nit += nit2
+                message = f"{message}; folds from the flat print: {message2}"
+                branch["flat_print_best_rms_mm"] = h * math.sqrt(state["best"][0])
     finally:
         solver_log.removeFilter(quiet)
         for name in ("gdfe.solver.newton", "gdfe.solver.simulation"):
@@ -617,4 +655,4 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=0.33, h=None, model=Non
                          printable_distance=pd_, initial_distance=idist, optimised_rms_mm=h * math.sqrt(J_best),
                          history=history, iterations=nit, evaluations=state["n"], message=message, seconds=seconds,
                          solver_warnings=quiet.count, unconverged_folds=state["bad"], masks_ok=ok,
-                         tolerance_mm=tol_mm, options=options, target_surface=surf)
+                         tolerance_mm=tol_mm, options=options, target_surface=surf, branch=branch)

@@ -236,10 +236,10 @@ def twist(size, angle=None, width=None):
 
 
 #: Why a twist is beyond isotropic shrink (measured by ``gdfe study inverse2d``).
-TWIST_NOTE = ("a helicoid's curvature is a pure twist (zero mean curvature), and isotropic shrink bends a cell alike "
-              "in every direction, so the twist must come from the fold's metric alone (edges longer than the middle); "
-              "a strip thick for its width takes that up in its plane, and a thin one need not choose the helicoid "
-              "among the surfaces of the same metric and mean curvature (its mirror image, a catenoid strip)")
+TWIST_NOTE = ("a helicoid's curvature is a pure twist (zero mean curvature) and isotropic shrink bends a cell alike "
+              "in every direction: the placement's estimate, both faces alike, folds untwisted, and the twist has to "
+              "come from one-sided coats varying over the strip, which a strip narrow for its thickness resists (the "
+              "distance falls with the strip's size: gdfe study inverse2d)")
 
 
 #: The analytic target builders, by name: ``builder(size, **params)``.
