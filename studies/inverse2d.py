@@ -170,6 +170,7 @@ def _record(dsg, size):
            "distance": _distances(dsg), "tolerance_mm": dsg.tolerance_mm, "reached": dsg.reached,
            "converged": bool(dsg.printable.converged and dsg.relaxed.converged), "masks_ok": dsg.masks_ok,
            "iterations": dsg.iterations, "evaluations": dsg.evaluations, "seconds": dsg.seconds["total"],
+           "branch": dsg.branch,
            "reachability": dsg.reachability.as_dict(),
            "coated": {"top": float(dsg.top.mean()), "bottom": float(dsg.bottom.mean())}}
     return rec
