@@ -46,7 +46,7 @@ TARGETS = ("dome", "saddle", "twist")
 #: The cap out of reach: film size and sphere radius [mm].
 UNREACHABLE = (6.0, 2.0)
 SETTINGS = {
-    "coarse": {"pixel": 0.5, "sizes": (4.0, 8.0), "iterations": 10, "timing": (4.0, 0.25), "unreachable_pixel": 0.5},
+    "coarse": {"pixel": 0.5, "sizes": (3.0, 6.0), "iterations": 8, "timing": (3.0, 0.25), "unreachable_pixel": 0.5},
     "default": {"pixel": 0.25, "sizes": (3.0, 6.0, 12.0), "iterations": 40, "timing": (12.5, 0.125),
                 "unreachable_pixel": 0.25},
     "fine": {"pixel": 0.125, "sizes": (3.0, 6.0, 12.0, 24.0), "iterations": 60, "timing": (25.0, 0.125),

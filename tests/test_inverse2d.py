@@ -291,7 +291,7 @@ def test_inverse2d_study_coarse(tmp_path):
     assert not failed
     assert r["converged"]
     t = r["twist"]
-    assert [x["size_mm"] for x in r["sweeps"]["twist"]] == [4.0, 8.0, 16.0] and t["size_mm"] == 16.0
+    assert [x["size_mm"] for x in r["sweeps"]["twist"]] == [3.0, 6.0, 12.0] and t["size_mm"] == 12.0
     # the placement's estimate has both faces alike (the helicoid's mean curvature is zero): it folds untwisted
     assert t["start_faces_differ_by"] < 1e-6 and abs(t["start_twist_rad"]) < 1e-6
     assert r["timing"]["evaluations"] >= r["timing"]["iterations"] >= 1
