@@ -32,6 +32,7 @@ STUDIES = {
     "hinge-error": "studies.hinge_error",
     "stopping": "studies.stopping",
     "contact": "studies.contact",
+    "inverse2d": "studies.inverse2d",
 }
 
 

@@ -1,13 +1,22 @@
-"""``gdfe design``: the paper's 1-D design pipeline (Sec. 4.2) from couples, a sketch or letters to printer files.
+"""``gdfe design``: the paper's 1-D design pipeline (Sec. 4.2), and 2-D design from a target surface.
 
-Input: a couples file (``.toml``), a sketch (``.csv`` of points, or an ``.svg`` stroke) or
+1-D input: a couples file (``.toml``), a sketch (``.csv`` of points, or an ``.svg`` stroke) or
 ``--text`` (letters of Figure 9). For each part: the strip pattern at the printer's pixel,
 its masks (``NAME_top.png``, ``NAME_bottom.png``: 1-bit, black = passive, DPI set) and
 design file (``NAME.toml``), the design read back from those files and simulated
 (``NAME_check.pvd``), and its deviation from the target (``NAME_deviation.png``,
 ``NAME_deviation.json``: RMS and largest distance, overall and per segment); then a print
-package of every part (``print.zip``) and ``design.json``. Every choice is printed with where
-it came from.
+package of every part (``print.zip``) and ``design.json``.
+
+2-D input: ``--target dome|saddle|cylinder|twist|MESH.obj|.stl|.ply --size MM``
+(:mod:`gdfe.inverse2d`): the coating of both faces whose GDFE fold matches the surface, its
+printable masks, a design file that reads them back, the forward check of the printed design
+and its distance to the target (``NAME.json``: ``rms_mm``, ``max_mm``, ``hausdorff_mm``), and a
+figure (:func:`gdfe.inverse2d.write_design`). Exit status 3 when the printed design's fold did
+not converge, 4 when it misses the target (the answer says by how much, and for a target out of
+reach the closest one within it).
+
+Every choice is printed with where it came from.
 """
 
 from __future__ import annotations
@@ -18,6 +27,8 @@ from pathlib import Path
 from gdfe import paper
 from gdfe._validation import GdfeError, check_length
 from gdfe.cli._common import emit, file_path, json_arg, noting, out_arg, output_folder
+from gdfe.inverse2d.design import DEFAULT_ITERATIONS
+from gdfe.inverse2d.masks import PROJECTIONS
 
 __all__ = ["register", "run"]
 
@@ -28,10 +39,15 @@ DEFAULT_PENALTY = 0.1  # the paper's third level (Fig. 10)
 
 
 def register(sub):
-    p = sub.add_parser("design", help="design a strip from couples, a sketch or letters (paper Sec. 4.2)",
+    p = sub.add_parser("design", help="design a strip from couples, a sketch or letters (paper Sec. 4.2), or a "
+                                      "film from a target surface (--target)",
                        description="The 1-D design pipeline: couples (TOML), a sketch (CSV of points or an SVG "
                                    "stroke) or --text letters -> printer masks, a design file, the simulated "
-                                   "check and its deviation report.")
+                                   "check and its deviation report. With --target SURFACE --size MM: 2-D design, "
+                                   "the coating of both faces whose fold matches the surface (gradient-based, "
+                                   "through the GDFE equilibrium), printable masks that respect --w-min, the "
+                                   "printed design's fold and its distance to the target; exit status 3 when "
+                                   "that fold did not converge, 4 when it misses the target.")
     p.add_argument("input", nargs="?", type=file_path, help="couples (.toml), sketch (.csv or .svg)")
     p.add_argument("--text", help="letters of Figure 9 to design, one strip each (instead of INPUT)")
     out_arg(p, required=True)
@@ -57,6 +73,21 @@ def register(sub):
     p.add_argument("--spacing", type=float, default=0.2,
                    help="sketch SVG: sampling of curved segments [mm] (default 0.2)")
     p.add_argument("--no-check", action="store_true", help="write the files, skip the simulated check")
+    g = p.add_argument_group("2-D design from a target surface")
+    g.add_argument("--target", metavar="SURFACE",
+                   help="dome, saddle, cylinder, twist, or a triangle mesh (.obj, .stl, .ply) [mm]")
+    g.add_argument("--size", type=float, help="film size [mm]: the square film's side, the twist's length, the "
+                                              "largest side of a mesh's flattened outline")
+    g.add_argument("--model", help="deformation model file (default the paper's Eq. 3)")
+    g.add_argument("--iterations", type=int,
+                   help=f"L-BFGS-B iterations (default {DEFAULT_ITERATIONS}; 0: the placement's estimate only)")
+    g.add_argument("--radius", type=float, help="dome, saddle, cylinder: radius of curvature [mm] (default: the "
+                                                "size; the cylinder's half of it)")
+    g.add_argument("--angle", type=float, help="twist: angle end to end [rad] (default pi); --width: its width")
+    g.add_argument("--projection", choices=PROJECTIONS, default=None,
+                   help="coating fractions to masks: halftone (default), nested halftones, or threshold at 1/2")
+    g.add_argument("--tolerance", type=float, help="RMS distance [mm] below which the target counts as reached "
+                                                   "(default 1 %% of the film's size)")
     json_arg(p, "the summary")
     p.set_defaults(func=run)
 
@@ -118,12 +149,38 @@ def _targets(args, ch):
     raise GdfeError(f"input: expected a .toml (couples), .csv or .svg (sketch) file, got {path.name!r}")
 
 
+#: Options of the 1-D pipeline only, and of the 2-D one only: (dest, flag).
+_ONLY_1D = (("input", "INPUT"), ("text", "--text"), ("R", "--R"), ("K", "--K"), ("penalty", "--penalty"),
+            ("weights", "--weights"), ("rounding", "--rounding"), ("clamp", "--clamp"), ("svg_id", "--svg-id"))
+_ONLY_2D = (("size", "--size"), ("model", "--model"), ("iterations", "--iterations"), ("radius", "--radius"),
+            ("angle", "--angle"), ("projection", "--projection"), ("tolerance", "--tolerance"))
+
+
+def _check_mode(args):
+    if args.target is not None:
+        given = [flag for dest, flag in _ONLY_1D if getattr(args, dest) is not None]
+        given += [flag for dest, flag in (("compensate", "--compensate"), ("no_check", "--no-check"))
+                  if getattr(args, dest)]
+        if given:
+            raise GdfeError(f"{given[0]}: not an option of --target (2-D design); --target takes --size, --model, "
+                            "--pixel, --w-min, --d, --h, --iterations, --radius, --angle, --width, --projection, "
+                            "--tolerance")
+        if args.size is None:
+            raise GdfeError("--size: expected the film's size in mm with --target, got nothing")
+        return
+    given = [flag for dest, flag in _ONLY_2D if getattr(args, dest) is not None]
+    if given:
+        raise GdfeError(f"{given[0]}: an option of --target (2-D design), not of the 1-D pipeline")
+
+
 def run(args):
     import contextlib
 
+    _check_mode(args)
     folder = output_folder(args.out, args)
+    body = _run_target if args.target is not None else _run
     with noting(folder), contextlib.ExitStack() as stack:  # the folder is entered when the files are written
-        return _run(args, lambda: stack.enter_context(folder))
+        return body(args, lambda: stack.enter_context(folder))
 
 
 def _run(args, begin_output):
@@ -220,4 +277,90 @@ def _text(ch, records, out, pkg):
             lines.append(f"      segment {seg['index']:>2} ({what:<9} L {seg['L_mm']:.3f} mm, {r}): "
                          f"RMS {seg['rms_mm']:.3f} mm, max {seg['max_mm']:.3f} mm")
     lines.append(f"  wrote {out}/ (masks, design files, *_deviation.png/json, *_check.pvd), {pkg}, design.json")
+    return "\n".join(lines)
+
+
+# -- 2-D design from a target surface -------------------------------------------------------------------------
+def _run_target(args, begin_output):
+    from gdfe.cli._progress import bar, progress_mode
+    from gdfe.inverse2d import design_surface, make_target, write_design
+    from gdfe.model import as_model, paper_model
+
+    ch = _Choices()
+    target = make_target(args.target, args.size, radius=args.radius, angle=args.angle,
+                         width=args.width if args.target == "twist" else None)
+    if args.width is not None and args.target != "twist":
+        raise GdfeError(f"--width: the strip width of the twist target (or of a 1-D strip), not of {args.target!r}")
+    ch.set("target", f"{target.name}: {target.source}", "command line")
+    film_mm = " x ".join(f"{v:.4g}" for v in target.film_size)
+    ch.set("size", float(args.size), "command line", "mm")
+    ch.set("film", f"{film_mm} mm" + (" (the mesh's flattened outline)" if target.kind == "mesh" else ""),
+           "from the size")
+    h = ch.pick("h", args.h, None, paper.H, "paper", "mm")
+    d = ch.pick("d", args.d, None, paper.FIG6_D, "paper (Fig. 6 specimens)", "mm")
+    model = as_model(args.model) if args.model is not None else paper_model()
+    ch.set("model", model.name + (f" ({args.model})" if args.model else ""),
+           "command line" if args.model else "paper (Eq. 3)")
+    pixel = ch.pick("pixel", args.pixel, None, DEFAULT_PIXEL, "default (the paper gives no printer pixel)", "mm")
+    w_min = ch.pick("w_min", args.w_min, None, pixel, "default: one pixel", "mm")
+    iterations = ch.pick("iterations", args.iterations, None, DEFAULT_ITERATIONS, "default")
+    projection = ch.pick("projection", args.projection, None, "halftone",
+                         "default (error diffusion of the coating fractions)")
+    tolerance = ch.pick("tolerance", args.tolerance, None, 0.01 * float(max(target.film_size)),
+                        "default: 1 % of the film's size", "mm")
+
+    progress = bar(None, progress_mode(args), desc="designing", unit=" fold", leave=False)
+
+    def callback(rec):
+        progress.update(1)
+        progress.set_postfix_str(f"RMS {rec['rms_mm']:.3g} mm", refresh=False)
+
+    try:
+        result = design_surface(target, pixel=pixel, w_min=w_min, d=d, h=h, model=model, iterations=iterations,
+                                projection=projection, tolerance_mm=tolerance,
+                                callback=callback if progress is not None else None)
+    finally:
+        if progress is not None:
+            progress.close()
+    opts = result.options
+    ch.set("block", f"{opts['block_pixels']} x {opts['block_pixels']} pixels", "from w_min and pixel")
+    ch.set("filter radius", opts["filter_radius_mm"], "default: two blocks", "mm")
+    begin_output()
+    name = target.name
+    written = write_design(result, args.out, name=name)
+    summary = written.summary
+    emit(summary, args.json, _text_target(ch, result, args.out, written.files))
+    if not result.printable.converged:
+        return 3
+    return 0 if result.reached else 4
+
+
+def _distance_text(d):
+    return f"RMS {d.rms_mm:.4g} mm, max {d.max_mm:.4g} mm, Hausdorff {d.hausdorff_mm:.4g} mm"
+
+
+def _text_target(ch, r, out, files):
+    film = r.film
+    lines = ["gdfe design --target: choices", ch.text()]
+    lines.append(f"  film: {film.shape[0]} x {film.shape[1]} pixels = {film.shape[0] * film.pixel:.4g} x "
+                 f"{film.shape[1] * film.pixel:.4g} mm, {film.n_cells} cells; a free face contracts by c0 = {film.c0:.4f}")
+    lines.append(f"  placement: sigma {r.sigma:.4g}; reachability: {r.reachability.text()}")
+    if r.closest is not None:
+        lines.append(f"  closest within reach: {r.closest['text']}")
+    lines.append(f"  optimisation: {r.iterations} L-BFGS-B iterations, {r.evaluations} evaluations (fold + adjoint), "
+                 f"{r.seconds['optimisation']:.1f} s; {r.message}"
+                 + (f"; {r.unconverged_folds} folds did not converge" if r.unconverged_folds else ""))
+    lines.append(f"  start (placement estimate), folded from flat: {_distance_text(r.initial_distance)}")
+    lines.append(f"  relaxed design, folded from flat:             {_distance_text(r.relaxed_distance)}")
+    pd_ = r.printable
+    top = r.top[film.mask] if film.mask is not None else r.top
+    bottom = r.bottom[film.mask] if film.mask is not None else r.bottom
+    lines.append(f"  printed fold (the masks), folded from flat:   {_distance_text(r.printable_distance)}; "
+                 f"{'converged' if pd_.converged else 'NOT CONVERGED'} in {pd_.iterations} iterations")
+    lines.append(f"  masks: top {100 * top.mean():.1f} % coated, bottom {100 * bottom.mean():.1f} % coated, "
+                 f"{'respect' if r.masks_ok else 'DO NOT respect'} w_min")
+    lines.append(f"  {r.verdict()}")
+    lines.append(f"  seconds: " + ", ".join(f"{k} {v:.1f}" for k, v in r.seconds.items()))
+    names = ", ".join(Path(v).name for k, v in files.items())
+    lines.append(f"  wrote {out}/ ({names})")
     return "\n".join(lines)

@@ -20,7 +20,10 @@ The method, in four steps (each measured by ``gdfe study inverse2d``):
    with the gradient through the GDFE equilibrium by the adjoint method
    (:mod:`gdfe.inverse2d.adjoint`: one sparse solve with the exact Hessian per evaluation). Each
    fold starts from the last one; the first from the target's shape (the flat print of a film
-   that only contracts in its plane is an equilibrium, which a start from it would keep).
+   that only contracts in its plane is an equilibrium, which a start from it would keep). A
+   film can have several equilibria (a saddle and the same saddle turned by 90 degrees share
+   their metric and mean curvature): where the design, folded from the flat print as in the
+   oven, lands on another one, a second optimisation folds every evaluation from the flat print.
 3. **Printable masks**: the relaxed fractions are halftoned in blocks of ``w_min``
    (:func:`gdfe.inverse2d.masks.halftone`); ``projection="threshold"`` is the topology
    optimiser's 1/2 threshold instead.
@@ -53,14 +56,22 @@ from gdfe.inverse2d.masks import PROJECTIONS, block_size, density_filter, min_fe
 from gdfe.inverse2d.targets import Target
 from gdfe.measure import rigid_align
 from gdfe.paper import FIG6_D
+from gdfe.resources import estimate_run
 
-__all__ = ["Reachability", "SurfaceDesign", "scale_for", "closest_reachable", "natural_curvature", "target_start",
-           "initial_coating", "Objective", "design_surface", "DEFAULT_ITERATIONS", "FOLD_TOL"]
+__all__ = ["Reachability", "SurfaceDesign", "scale_for", "closest_reachable", "reachable_sizes", "natural_curvature",
+           "target_start", "initial_coating", "Objective", "design_surface", "DEFAULT_ITERATIONS", "FOLD_TOL",
+           "BRANCH_RATIO", "BRANCH_FLOOR"]
 
 log = logging.getLogger(__name__)
 
 #: L-BFGS-B iterations of :func:`design_surface` by default.
 DEFAULT_ITERATIONS = 60
+#: The optimisation's folds continue from the last one (smooth, and cheap); where the design then folds
+#: from the flat print more than BRANCH_RATIO times as far from the target (RMS) as on the continued
+#: folds, and by more than BRANCH_FLOOR of the tolerance, the flat print takes another branch (a saddle
+#: turned by 90 degrees, a dome inside out): a second optimisation folds every evaluation from the flat print.
+BRANCH_RATIO = 2.0
+BRANCH_FLOOR = 0.1
 #: Tolerance (units of h) of the folds inside the optimisation: the adjoint gradient is as
 #: accurate as the equilibrium (the gradient test checks it at this tolerance).
 FOLD_TOL = 1e-8
@@ -198,6 +209,42 @@ def closest_reachable(target, film, t_min=1e-3):
     return lo, target.family(lo)
 
 
+def reachable_sizes(target, film):
+    """For a target of fixed size (a mesh, ``target.sigma`` set): the film sizes within reach of step 1's estimate.
+
+    The film of side ``s'`` covers the same conformal coordinates ``u = sigma p`` as this one with
+    ``sigma' s' = sigma s``, so the metric factor becomes ``lambda = sigma' f(u)`` while the
+    curvature (per mm of the target) stays: the margin is scanned over ``sigma'``.
+
+    Returns
+    -------
+    dict
+        ``size_mm`` (the film size [mm] with the largest margin, scaled from the film's largest side),
+        ``margin`` there, ``sizes_mm`` (``[smallest, largest]`` within reach, or None when none is).
+    """
+    check_instance("target", target, Target)
+    check_instance("film", film, Film)
+    if target.sigma is None:
+        raise GdfeError("target: expected a target of fixed size (a mesh), got an analytic one")
+    p = film.mid.flat
+    s0 = float(target.sigma)
+    f = target.metric_factor(p, s0) / s0
+    dc = film.h * np.abs(natural_curvature(target.second_form(p, s0)))
+
+    def margin(k):
+        lam = k * f
+        half = 0.5 * dc * lam
+        return float(np.min(np.minimum(1.0 - lam - half, film.c0 - half - (1.0 - lam))))
+
+    grid = np.linspace(0.3, 1.05, 301)
+    vals = np.array([margin(k) for k in grid])
+    size = float(max(film.shape) * film.pixel)
+    best = int(np.argmax(vals))
+    ok = grid[vals >= 0]
+    return {"size_mm": size * s0 / float(grid[best]), "margin": float(vals[best]),
+            "sizes_mm": [size * s0 / float(ok.max()), size * s0 / float(ok.min())] if ok.size else None}
+
+
 def initial_coating(target, film, sigma):
     """Step 1's coating fractions ``(m, 2)`` (top, bottom) at the cells, clipped to [0, 1]."""
     cm, dc, _, _ = _needs(target, film.cell_centres, sigma, film.h)
@@ -272,14 +319,18 @@ class SurfaceDesign:
     sigma : float
     reachability : Reachability
     closest : dict or None
-        The closest target of the same kind within reach (``t``, its parameters) where the
-        target is out of reach.
+        Where the target is out of reach, the closest within reach, with its ``text``: for an
+        analytic target the one of the same kind (:func:`closest_reachable`: ``t``, its curvature
+        over the target's, ``params`` and ``distance``, its patch from the target's after rigid
+        alignment, :meth:`Distance.as_dict`); for a mesh the film sizes that reach it
+        (:func:`reachable_sizes`).
     rho : (m, 2) float array
         The relaxed coating fractions (top, bottom) after the filter.
     top, bottom : (nx, ny) bool arrays
         The printable masks (True = coated).
-    relaxed, printable : gdfe.Result
-        The forward checks (from the flat print, :func:`gdfe.simulate`).
+    relaxed, printable, initial : gdfe.Result
+        The forward checks (from the flat print, :func:`gdfe.simulate`) of the relaxed design,
+        the printed one and the optimisation's start.
     relaxed_distance, printable_distance : Distance
     initial_distance : Distance
         The fold of step 1's estimate (the optimisation's start), for comparison.
@@ -305,6 +356,12 @@ class SurfaceDesign:
         The RMS distance below which the target counts as reached.
     options : dict
         The choices the design was made with.
+    target_surface : TriangleSurface
+        The target's patch the distances are measured to.
+    branch : dict or None
+        The optimised design's objective as an RMS [mm] on the continued folds and folded from
+        the flat print, and whether a second optimisation from the flat print followed
+        (:data:`BRANCH_RATIO`); None without optimisation.
     """
 
     target: Target
@@ -317,6 +374,7 @@ class SurfaceDesign:
     bottom: np.ndarray
     relaxed: object
     printable: object
+    initial: object
     relaxed_distance: Distance
     printable_distance: Distance
     initial_distance: Distance
@@ -331,6 +389,8 @@ class SurfaceDesign:
     masks_ok: bool
     tolerance_mm: float
     options: dict
+    target_surface: object = None
+    branch: dict | None = None
 
     @property
     def reached(self) -> bool:
@@ -347,18 +407,27 @@ class SurfaceDesign:
             return (f"reached: the printed fold is within {d.rms_mm:.3g} mm RMS ({d.max_mm:.3g} mm max) of the "
                     f"target, tolerance {self.tolerance_mm:.3g} mm")
         why = (f"the target is {self.reachability.text()}" if not self.reachability.reachable
-               else "the target is within the estimate's reach, but the fold found does not get there")
+               else "the target is within the estimate's reach, but the fold found does not get there"
+               + (f": {self.target.note}" if self.target.note else ""))
         near = ""
         if self.closest is not None:
-            near = f"; the closest target of this kind within reach: {self.closest['text']}"
+            near = f"; the closest within reach: {self.closest['text']}"
         return (f"NOT REACHED: the closest fold found misses the target by {d.rms_mm:.3g} mm RMS ({d.max_mm:.3g} mm "
                 f"max, Hausdorff {d.hausdorff_mm:.3g} mm), tolerance {self.tolerance_mm:.3g} mm; {why}{near}")
 
     def summary(self) -> dict:
-        """The numbers for JSON: the printed fold's distance at the top level (``rms_mm``, ``max_mm``, ``hausdorff_mm``)."""
+        """The numbers for JSON.
+
+        At the top level: the printed fold's distance (``rms_mm``, ``max_mm``, ``hausdorff_mm``,
+        ``target_rms_mm``), whether it ``converged`` and ``reached`` the target, the ``verdict``,
+        the L-BFGS-B ``iterations`` and ``evaluations``; ``relaxed`` and ``initial`` (the start)
+        hold the same distances of the relaxed design's and the start's folds.
+        """
         pd_, rd, idist = self.printable_distance, self.relaxed_distance, self.initial_distance
         return {
-            **pd_.as_dict(), "reached": self.reached, "tolerance_mm": self.tolerance_mm, "verdict": self.verdict(),
+            **pd_.as_dict(), "converged": bool(self.printable.converged), "reached": self.reached,
+            "tolerance_mm": self.tolerance_mm, "verdict": self.verdict(),
+            "iterations": self.iterations, "evaluations": self.evaluations,
             "target": self.target.summary(), "sigma": self.sigma, "reachability": self.reachability.as_dict(),
             "closest_reachable": self.closest,
             "film": {"nx": self.film.shape[0], "ny": self.film.shape[1], "pixel_mm": self.film.pixel,
@@ -374,12 +443,19 @@ class SurfaceDesign:
                           "masks_respect_w_min": bool(self.masks_ok)},
             "relaxed": {**rd.as_dict(), "converged": bool(self.relaxed.converged),
                         "optimised_rms_mm": self.optimised_rms_mm},
-            "initial": idist.as_dict(),
-            "optimisation": {"iterations": self.iterations, "evaluations": self.evaluations, "message": self.message,
+            "initial": {**idist.as_dict(), "converged": bool(self.initial.converged)},
+            "optimisation": {"message": self.message, "branch": self.branch,
                              "solver_warnings": self.solver_warnings, "unconverged_folds": self.unconverged_folds,
                              "history": self.history},
             "seconds": self.seconds, "options": self.options,
         }
+
+
+def _target_gap(near, film, surf):
+    """Distance of target ``near``'s patch (at its own scale on ``film``) from the patch ``surf``."""
+    s_near, _ = scale_for(near, film)
+    mid = film.mid
+    return surface_distance(near.point(mid.flat, s_near), mid.triangles, surf)
 
 
 def _distance(result, film, surf, designed):
@@ -406,8 +482,11 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=FIG6_D, h=None, model=N
     model : DeformationModel or path, optional
         Default the paper's Eq. 3.
     iterations : int
-        L-BFGS-B iterations (0: step 1's estimate only).
-    projection : {"halftone", "threshold"}
+        L-BFGS-B iterations (0: step 1's estimate only), of each phase: the folds continue from the
+        last one, and where the flat print folds onto another branch a second phase folds every
+        evaluation from the flat print (:data:`BRANCH_RATIO`).
+    projection : {"halftone", "nested", "threshold"}
+        :func:`gdfe.inverse2d.masks.project`.
     filter_radius : float [mm], optional
         Radius of the density filter on the design variables; default two blocks of ``w_min``
         (the scale a halftone reproduces), 0 for none.
@@ -440,8 +519,16 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=FIG6_D, h=None, model=N
     seconds = {}
     t0 = time.perf_counter()
 
-    nx = max(2, int(round(target.film_size[0] / pixel)))
-    ny = max(2, int(round(target.film_size[1] / pixel)))
+    # the film is whole pixels: its sides are the target's rounded to the pixel
+    nx, ny = (int(round(float(v) / pixel)) for v in target.film_size)
+    if min(nx, ny) < 2:
+        raise GdfeError(f"pixel: expected at most half the film's smaller side ({float(min(target.film_size)):g} mm), "
+                        f"got {pixel:g} mm")
+    rect = np.array([nx, ny], float) * pixel
+    est = estimate_run(nx * ny)
+    if not est.fits:
+        raise GdfeError(f"pixel: expected a film that fits in memory, got {nx} x {ny} pixels ({est.text()}); "
+                        "use a larger pixel or a smaller film")
     mask = None
     if target.film_mask is not None:
         x = (np.arange(nx) + 0.5) * pixel - 0.5 * nx * pixel
@@ -450,12 +537,23 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=FIG6_D, h=None, model=N
         mask = np.asarray(target.film_mask(np.column_stack([X.ravel(), Y.ravel()])), bool).reshape(nx, ny)
     film = Film((nx, ny), pixel, h, d, model=model, mask=mask)
     sigma, reach = scale_for(target, film, sigma)
+    surf = patch(target, sigma, rect, min(pixel, size / 100.0), target.film_mask)
     closest = None
-    if not reach.reachable:
+    if not reach.reachable and target.family is not None:
         t, near = closest_reachable(target, film)
         if near is not None:
-            closest = {"t": t, "params": near.params,
-                       "text": ", ".join(f"{k} {v:.4g}" for k, v in near.params.items()) + f" (curvature x {t:.3g})"}
+            gap = _target_gap(near, film, surf)
+            closest = {"t": t, "params": near.params, "distance": gap.as_dict(),
+                       "text": (f"a {near.kind} with " + ", ".join(f"{k} {v:.4g}" for k, v in near.params.items())
+                                + f" (curvature x {t:.3g}), {gap.rms_mm:.3g} mm RMS ({gap.max_mm:.3g} mm max) "
+                                  "from the target")}
+    elif not reach.reachable and target.sigma is not None:
+        sizes = reachable_sizes(target, film)
+        text = (f"this {target.kind} on a film of {sizes['size_mm']:.3g} mm (films of {sizes['sizes_mm'][0]:.3g} to "
+                f"{sizes['sizes_mm'][1]:.3g} mm are within reach)" if sizes["sizes_mm"] is not None else
+                f"none: no film size brings this {target.kind} within reach (best margin {sizes['margin']:.3f} at "
+                f"{sizes['size_mm']:.3g} mm)")
+        closest = {**sizes, "text": text}
     seconds["placement"] = time.perf_counter() - t0
     log.info("inverse2d: %s on %d x %d pixels (%d cells); %s", target.name, nx, ny, film.n_cells, reach.text())
 
@@ -465,7 +563,7 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=FIG6_D, h=None, model=N
     F = density_filter(film.cell_centres, radius)
     x0 = initial_coating(target, film, sigma)
     # step 1's estimate is smooth: the filter leaves it almost as it is
-    state = {"V": target_start(target, film, sigma), "best": (np.inf, x0), "n": 0, "bad": 0}
+    state = {"V": target_start(target, film, sigma), "best": (np.inf, x0), "n": 0, "bad": 0, "flat": False}
     history = []
 
     def rho_of(x):
@@ -473,7 +571,7 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=FIG6_D, h=None, model=N
 
     def fun(xflat):
         x = xflat.reshape(-1, 2)
-        f = fold(film.relaxed(rho_of(x)), start=state["V"], tol=FOLD_TOL)
+        f = fold(film.relaxed(rho_of(x)), start=None if state["flat"] else state["V"], tol=FOLD_TOL)
         state["n"] += 1
         if not f.converged:
             state["bad"] += 1
@@ -485,7 +583,8 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=FIG6_D, h=None, model=N
         if J < state["best"][0] and f.converged:
             state["best"] = (J, x.copy())
         rec = {"evaluation": state["n"], "J": J, "rms_mm": h * math.sqrt(J), "fold_iterations": f.iterations,
-               "converged": f.converged, "seconds": time.perf_counter() - t1}
+               "converged": f.converged, "seconds": time.perf_counter() - t1,
+               "folds_from": "flat print" if state["flat"] else "last fold"}
         history.append(rec)
         if callback is not None:
             callback(rec)
@@ -496,13 +595,34 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=FIG6_D, h=None, model=N
     solver_log.addFilter(quiet)
     for name in ("gdfe.solver.newton", "gdfe.solver.simulation"):
         logging.getLogger(name).addFilter(quiet)
+    def optimise(x_start):
+        res = minimize(fun, x_start.ravel(), jac=True, method="L-BFGS-B", bounds=[(0.0, 1.0)] * x0.size,
+                       options={"maxiter": iterations, "ftol": 1e-12, "gtol": 1e-10, "maxcor": 20})
+        return int(res.nit), str(res.message)
+
+    branch = None
     try:
-        J0, _ = fun(x0.ravel())
+        fun(x0.ravel())
         nit, message = 0, "no optimisation (iterations=0)"
         if iterations > 0:
-            res = minimize(fun, x0.ravel(), jac=True, method="L-BFGS-B", bounds=[(0.0, 1.0)] * x0.size,
-                           options={"maxiter": iterations, "ftol": 1e-12, "gtol": 1e-10, "maxcor": 20})
-            nit, message = int(res.nit), str(res.message)
+            nit, message = optimise(x0)
+            # the oven folds the print from flat: is that the branch the folds continued on?
+            J_cont, x_cont = state["best"]
+            f = fold(film.relaxed(rho_of(x_cont)), tol=FOLD_TOL)
+            J_flat = objective(f.points)[0] if f.converged else np.inf
+            rms_cont, rms_flat = h * math.sqrt(J_cont), h * math.sqrt(J_flat)
+            switch = rms_flat > BRANCH_RATIO * rms_cont and rms_flat > BRANCH_FLOOR * tol_mm
+            branch = {"continued_rms_mm": rms_cont, "flat_print_rms_mm": rms_flat, "second_phase": bool(switch)}
+            if switch:
+                log.info("inverse2d: from the flat print the design folds %.3g mm RMS from the target against %.3g "
+                         "mm on the folds continued from the target's shape: a second optimisation, every fold "
+                         "from the flat print", rms_flat, rms_cont)
+                state["flat"] = True
+                state["best"] = (J_flat, x_cont)
+                nit2, message2 = optimise(x_cont)
+                nit += nit2
+                message = f"{message}; folds from the flat print: {message2}"
+                branch["flat_print_best_rms_mm"] = h * math.sqrt(state["best"][0])
     finally:
         solver_log.removeFilter(quiet)
         for name in ("gdfe.solver.newton", "gdfe.solver.simulation"):
@@ -512,10 +632,9 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=FIG6_D, h=None, model=N
     seconds["optimisation"] = time.perf_counter() - t1
 
     t2 = time.perf_counter()
-    surf = patch(target, sigma, target.film_size, min(pixel, size / 100.0), target.film_mask)
     relaxed = gdfe.simulate(film.relaxed(rho))
     rd = _distance(relaxed, film, surf, T)
-    initial = gdfe.simulate(film.relaxed(x0))
+    initial = gdfe.simulate(film.relaxed(rho_of(x0)))
     idist = _distance(initial, film, surf, T)
     seconds["relaxed_check"] = time.perf_counter() - t2
 
@@ -532,8 +651,9 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=FIG6_D, h=None, model=N
                "objective": "mean squared distance of the mid-surface points from their target points after "
                             "rigid alignment, units of h^2"}
     return SurfaceDesign(target=target, film=film, sigma=sigma, reachability=reach, closest=closest, rho=rho,
-                         top=top, bottom=bottom, relaxed=relaxed, printable=printable, relaxed_distance=rd,
+                         top=top, bottom=bottom, relaxed=relaxed, printable=printable, initial=initial,
+                         relaxed_distance=rd,
                          printable_distance=pd_, initial_distance=idist, optimised_rms_mm=h * math.sqrt(J_best),
                          history=history, iterations=nit, evaluations=state["n"], message=message, seconds=seconds,
                          solver_warnings=quiet.count, unconverged_folds=state["bad"], masks_ok=ok,
-                         tolerance_mm=tol_mm, options=options)
+                         tolerance_mm=tol_mm, options=options, target_surface=surf, branch=branch)

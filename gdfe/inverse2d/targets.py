@@ -81,6 +81,8 @@ class Target:
         radius ``R / t``), for the closest reachable target; None for a mesh.
     source : str
         Where it came from (a file, or the formula).
+    note : str
+        What is known to limit the fold of this kind of target (said with a design that misses it).
     """
 
     name: str
@@ -93,6 +95,7 @@ class Target:
     film_mask: object = None
     family: object = None
     source: str = ""
+    note: str = ""
 
     def point(self, p, sigma):
         """Target points ``(k, 3)`` [mm] of film points ``p`` ``(k, 2)`` [mm] at scale ``sigma``."""
@@ -229,7 +232,14 @@ def twist(size, angle=None, width=None):
 
     return Target(name="twist", kind="twist", film_size=film, params={"angle_rad": theta, "width_mm": float(film[1])},
                   maps=maps, family=lambda t: twist(size, theta * t, film[1]),
-                  source=f"helicoid strip twisting by {theta:g} rad end to end")
+                  source=f"helicoid strip twisting by {theta:g} rad end to end", note=TWIST_NOTE)
+
+
+#: Why a twist is beyond isotropic shrink (measured by ``gdfe study inverse2d``).
+TWIST_NOTE = ("a helicoid's curvature is a pure twist (zero mean curvature) and isotropic shrink bends a cell alike "
+              "in every direction: the placement's estimate, both faces alike, folds untwisted, and the twist has to "
+              "come from one-sided coats varying over the strip, which a strip narrow for its thickness resists (the "
+              "distance falls with the strip's size: gdfe study inverse2d)")
 
 
 #: The analytic target builders, by name: ``builder(size, **params)``.
@@ -306,6 +316,11 @@ def read_triangle_mesh(path):
     return V[used], remap[T]
 
 
+def _cross2(a, b):
+    """The z component of the cross product of 2-D vectors ``(k, 2)``."""
+    return a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+
+
 def _boundary_edges(T):
     """Directed boundary edges ``(b, 2)`` of a triangle mesh (edges used by one triangle)."""
     E = np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]])
@@ -377,7 +392,7 @@ def conformal_flattening(V, T):
     U = np.column_stack([x[:n], x[n:]])
     # orientation: the flat triangles must keep the mesh's orientation
     ua, ub, uc = U[T[:, 0]], U[T[:, 1]], U[T[:, 2]]
-    signed = np.cross(ub - ua, uc - ua)
+    signed = _cross2(ub - ua, uc - ua)
     if np.sum(signed) < 0:
         U[:, 1] = -U[:, 1]
         signed = -signed
@@ -438,7 +453,6 @@ def _mean_curvature(V, T, normals):
     """Mean curvature at every vertex from the cotangent Laplacian, positive towards ``normals``;
     boundary vertices take the mean of their interior neighbours'."""
     n = len(V)
-    L = sp.csr_matrix((n, n))
     rows, cols, vals = [], [], []
     for j in range(3):
         i0, i1, i2 = T[:, j], T[:, (j + 1) % 3], T[:, (j + 2) % 3]
@@ -485,8 +499,7 @@ def mesh_target(V, T, size, name="mesh", source=""):
     centre = 0.5 * (U.max(axis=0) + U.min(axis=0))
     U = U - centre
     interp = _Interpolant(U, T)
-    area3, tri_area = _vertex_areas(V, T)
-    tri_flat = 0.5 * np.abs(np.cross(U[T[:, 1]] - U[T[:, 0]], U[T[:, 2]] - U[T[:, 0]]))
+    area3, _ = _vertex_areas(V, T)
     area2, _ = _vertex_areas(np.column_stack([U, np.zeros(len(U))]), T)
     f_vertex = np.sqrt(area3 / np.maximum(area2, 1e-300))
     fn = np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]])
@@ -495,7 +508,6 @@ def mesh_target(V, T, size, name="mesh", source=""):
         np.add.at(vn, T[:, j], fn)
     vn /= np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
     H = _mean_curvature(V, T, vn)
-    del tri_area, tri_flat
 
     def surface(u):
         return interp(V, u)
