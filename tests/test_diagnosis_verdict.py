@@ -70,8 +70,13 @@ def test_all_L_equal_never_names_hinge_length(t1, seed):
     assert not np.isfinite(hl.se).any()
     assert any(e["name"] == "hinge_length" and "not identifiable" in e["reason"] for e in diag.excluded)
     # at one film thickness cure_depth, film_thickening and passive_stiffness soften the
-    # d-dependence alike (the blind benchmark's aliases): any of them is a right answer here
+    # d-dependence alike (the blind benchmark's aliases): the diagnosis names those it cannot tell
+    # apart, the true one among them, and asks for another film thickness
     assert diag.best.name in ("cure_depth", "film_thickening", "passive_stiffness")
+    named = [f.name for f in diag.named]
+    assert "cure_depth" in named and "hinge_length" not in " ".join(named)
+    if len(named) > 1:
+        assert diag.separation["input"] == "h_mm"
 
 
 # -- identifiability, ties, bounds --------------------------------------------------------------------
