@@ -126,6 +126,13 @@ def test_is_right_and_confusions():
     assert bd.is_right("nominal", "baseline", "no_gap") and not bd.is_right("nominal", "baseline", "not_explained")
     assert bd.is_right("hard_cap", "saturation", "partly_explained")
     assert not bd.is_right("hard_cap", "saturation", "explained")
+    # a named set is right when it holds the answer; the looser reading counts a pair with the truth
+    assert bd.is_right("cure_depth", ["film_thickening", "cure_depth"], "explained")
+    assert not bd.is_right("cure_depth", ["cure_depth+passive_stiffness"], "explained")
+    assert bd.truth_in_a_named_model("cure_depth", ["cure_depth+passive_stiffness"])
+    assert bd.truth_in_a_named_model("partial_activation", ["partial_activation[T_C]+batch[batch]"])
+    assert not bd.truth_in_a_named_model("cure_depth", ["film_thickening", "hinge_length+saturation"])
+    assert not bd.truth_in_a_named_model("nominal", ["baseline"])
     recs = [{"generator": "cure_depth", "kind": "catalogue", "sensitivity": False, "best": "cure_depth",
              "verdict": "explained"},
             {"generator": "cure_depth", "kind": "catalogue", "sensitivity": False, "best": "cure_depth+hinge_length",
