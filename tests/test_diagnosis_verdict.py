@@ -275,6 +275,12 @@ def test_partial_activation_recovers_the_logistic(t1):
     assert math.sqrt(rss / 18) < 1e-6
     np.testing.assert_allclose(x, [0.1, 132.0, 0.12], rtol=1e-4)
     np.testing.assert_allclose(activation_fraction(np.array([132.0, 1e6, -1e6]), 132.0, 0.12), [0.5, 1.0, 0.0])
+    # a complex step gives the derivative of the logistic: df/dx50 = -rate f (1 - f)
+    T = np.linspace(110.0, 170.0, 25)
+    f = activation_fraction(T, 132.0, 0.12)
+    step = activation_fraction(T, 132.0 + 1e-20j, 0.12)
+    np.testing.assert_allclose(step.real, f, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(step.imag / 1e-20, -0.12 * f * (1 - f), rtol=1e-12, atol=1e-18)
 
 
 def test_partial_activation_in_a_temperature_column_is_named(t1):
