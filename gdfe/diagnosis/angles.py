@@ -24,8 +24,9 @@ columns) and
    contraction cannot be predicted for a group left out) and drops any effect the batch
    makes unnecessary;
 6. with a known **noise**: the baseline within it is the best (there is nothing to
-   explain); a chosen model that the lack-of-fit test rejects gives way to one within the
-   noise that the held-out errors do not rule out (:func:`within_noise_step`);
+   explain); a chosen model (the baseline included) that the lack-of-fit test rejects gives
+   way to one within the noise that the held-out errors do not rule out
+   (:func:`within_noise_step`);
 7. **names** every model the data cannot tell from the best, and the test that would tell
    them apart (:mod:`gdfe.diagnosis.separate`): at Table 1's single film thickness, for
    one, several effects soften the dependence on ``d`` alike;
@@ -57,8 +58,8 @@ from gdfe.diagnosis.separate import indistinguishable, separating_test
 from gdfe.diagnosis.verdict import LEVEL, MEANINGFUL, Noise, Verdict, decide, gap, lack_of_fit, noise_of
 from gdfe.diagnosis.where import group_analysis, residual_analysis, structure
 
-__all__ = ["Diagnosis", "Columns", "diagnose", "within_noise_step", "numeric_columns", "read_columns", "SIGMA_COLUMN",
-           "CHECK_TESTS"]
+__all__ = ["Diagnosis", "Columns", "diagnose", "within_noise_step", "numeric_columns", "read_columns",
+           "SIGMA_COLUMN", "CHECK_TESTS"]
 
 log = logging.getLogger(__name__)
 
@@ -208,9 +209,9 @@ class Diagnosis:
     best : EffectFit
         The chosen model (the baseline when no effect earns its parameters, or when the
         baseline is within a known noise; with a known noise, a model within it in place of
-        a held-out choice the lack-of-fit test rejects, :func:`within_noise_step`). Its ``model.effects``, ``model.param_names``,
-        ``params``, ``se`` and ``ci95`` (or ``param_dict()``, ``se_dict()``, ``ci_dict()``,
-        ``parameters()``) say what was found; :data:`gdfe.diagnosis.EFFECTS` says what each
+        a held-out choice the lack-of-fit test rejects, :func:`within_noise_step`). Its
+        ``model.effects``, ``model.param_names``, ``params``, ``se`` and ``ci95`` (or
+        ``param_dict()``, ``se_dict()``, ``ci_dict()``, ``parameters()``) say what was found; :data:`gdfe.diagnosis.EFFECTS` says what each
         parameter means.
     selected : EffectFit
         The model the held-out errors alone choose (``best`` unless the baseline is within
@@ -548,7 +549,7 @@ def diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=N
     best = selected
     if noise.known and lof_base["within"] and not struct_base:
         best = base  # within the noise: nothing to explain
-    elif noise.known and best.model.effects and not within(best):
+    elif noise.known and not within(best):
         best = within_noise_step(best, fits, alpha, within, kind_of, weights)
     named = indistinguishable(best, [base] + fits, alpha, kind_of, within if noise.known else None,
                               STEP_SE[0], weights, sigma=noise.sigma if noise.known else None)
@@ -644,7 +645,8 @@ def within_noise_step(chosen, fits, alpha, within, kind_of, weights=None, step=S
     Parameters
     ----------
     chosen : EffectFit
-        The held-out choice, with at least one effect.
+        The held-out choice (the baseline when no effect earned its parameters: then only
+        models that beat it by ``step`` standard errors are candidates).
     fits : list of EffectFit
     alpha : (n,) float array [rad]
     within : callable
