@@ -205,6 +205,33 @@ def _aliases(generator, fits, sigma):
                   if n != "baseline" and v <= sigma and not truth & {e.split("[")[0] for e in n.split("+")})
 
 
+#: Why a diagnosis missed, in the order the reasons are tried (:func:`miss_reason`).
+MISSES = ("false alarm", "below the noise", "the catalogue's form misses the effect", "aliased", "diagnoser")
+
+
+def miss_reason(kind, right, visible, truth_rms, aliases, sigma):
+    """Why a diagnosis of a data set is wrong (None when it is right).
+
+    ``false alarm``: a null data set not called ``no_gap`` (the tests' level says how often);
+    ``below the noise``: the effect's visibility is under :data:`VISIBLE` sigma; ``the
+    catalogue's form misses the effect``: no model counted right reproduces the noise-free
+    angles within sigma (``truth_rms > sigma``), so the effect built in is not the
+    catalogue's effect to within the noise; ``aliased``: another catalogue model reproduces
+    them within sigma; ``diagnoser``: none of these -- a method could have been right.
+    """
+    if right:
+        return None
+    if kind == "null":
+        return "false alarm"
+    if not visible:
+        return "below the noise"
+    if kind == "catalogue" and truth_rms is not None and truth_rms > sigma:
+        return "the catalogue's form misses the effect"
+    if aliases:
+        return "aliased"
+    return "diagnoser"
+
+
 def _job(spec):
     """Simulate one data set (or read it from the cache) and diagnose it at every noise level."""
     from gdfe.diagnosis import diagnose
@@ -214,6 +241,8 @@ def _job(spec):
     t_sim = time.perf_counter() - t0
     fits = clean_fits(sp, clean)
     visibility = fits["baseline"]
+    g = _generator(spec["generator"])
+    truth_rms = min(fits[a] for a in g.answers if a in fits) if g.kind == "catalogue" else None
     rng = np.random.default_rng(list(spec["seed"]) + [1])
     records = []
     for sigma in spec["sigmas"]:
@@ -222,6 +251,8 @@ def _job(spec):
         diag = diagnose(_tests(sp, noisy), sigma=sigma)
         named = [f.name for f in diag.named]
         right = is_right(spec["generator"], named, diag.verdict.verdict)
+        visible = bool(visibility >= VISIBLE * sigma)
+        aliases = _aliases(spec["generator"], fits, sigma)
         records.append({
             "generator": spec["generator"], "kind": spec["kind"], "sensitivity": spec["sensitivity"],
             "design": spec["design"], "rep": spec["rep"], "sigma": sigma,
@@ -230,8 +261,8 @@ def _job(spec):
             "named": named, "set_size": len(named),
             "truth_in_a_named_model": truth_in_a_named_model(spec["generator"], named),
             "removed": diag.verdict.removed, "correct": bool(right),
-            "visibility": visibility, "visible": bool(visibility >= VISIBLE * sigma),
-            "aliases": _aliases(spec["generator"], fits, sigma),
+            "visibility": visibility, "visible": visible, "aliases": aliases, "truth_rms": truth_rms,
+            "miss": miss_reason(spec["kind"], right, visible, truth_rms, aliases, sigma),
             "baseline_loo_rmse": diag.baseline.loo_rmse, "best_loo_rmse": diag.best.loo_rmse,
             "converged": bool(ok.all()), "seconds_diagnose": time.perf_counter() - t1, "seconds_simulate": t_sim,
         })
@@ -276,6 +307,27 @@ def _mean(xs):
     return float(np.mean(xs)) if xs else None
 
 
+def _tellable(r):
+    """Whether a method could be right on a data set: null data; visible effects whose own
+    catalogue form reproduces them within sigma (catalogue) or that no catalogue model
+    reproduces within sigma (outside)."""
+    if r["kind"] == "null":
+        return True
+    if not r["visible"]:
+        return False
+    if r["kind"] == "catalogue":
+        return r.get("truth_rms") is None or r["truth_rms"] <= r["sigma"]
+    return not r["aliases"]
+
+
+def _misses(records):
+    out = {}
+    for r in records:
+        if r.get("miss"):
+            out[r["miss"]] = out.get(r["miss"], 0) + 1
+    return {m: out[m] for m in MISSES if m in out}
+
+
 def summarise(records, sigmas):
     """Accuracy per class, per generator and per design set at each noise level."""
     from studies.diagnosis_generators import KINDS
@@ -291,11 +343,14 @@ def summarise(records, sigmas):
             kr = [r for r in main if r["kind"] == k]
             vis = [r for r in kr if r["kind"] == "null" or r["visible"]]
             un = [r for r in kr if r["kind"] != "outside" or not r["aliases"]]
+            told = [r for r in kr if _tellable(r)]
             entry["classes"][k] = {"n": len(kr), "accuracy": _mean(r["correct"] for r in kr),
                                    "n_visible": len(vis), "accuracy_visible": _mean(r["correct"] for r in vis),
                                    "n_unaliased": len(un), "accuracy_unaliased": _mean(r["correct"] for r in un),
+                                   "n_tellable": len(told), "accuracy_tellable": _mean(r["correct"] for r in told),
                                    "mean_set_size": _mean(r.get("set_size", 1) for r in kr),
-                                   "ambiguous": _mean(r.get("set_size", 1) > 1 for r in kr)}
+                                   "ambiguous": _mean(r.get("set_size", 1) > 1 for r in kr),
+                                   "misses": _misses(kr)}
             if k == "catalogue":
                 entry["classes"][k]["truth_in_a_named_model"] = _mean(r.get("truth_in_a_named_model", False)
                                                                       for r in kr)
@@ -306,6 +361,7 @@ def summarise(records, sigmas):
                 "visible": _mean(r["visible"] for r in gr), "aliased": _mean(bool(r["aliases"]) for r in gr),
                 "verdicts": {v: sum(r["verdict"] == v for r in gr) for v in dict.fromkeys(r["verdict"] for r in gr)},
                 "accuracy_visible": _mean(r["correct"] for r in gr if r["kind"] == "null" or r["visible"]),
+                "misses": _misses(gr),
                 "mean_set_size": _mean(r.get("set_size", 1) for r in gr),
                 "median_visibility": float(np.median([r["visibility"] for r in gr]))}
         for dset in dict.fromkeys(r["design"] for r in main):
@@ -597,7 +653,8 @@ def _write_md(result, out):
         for sig, e in s.items():
             lines.append(f"| {sig} | " + " | ".join(
                 f"{_fmt(c['accuracy'])} ({c['n']}; visible {_fmt(c['accuracy_visible'])} of {c['n_visible']}, "
-                f"unaliased {_fmt(c['accuracy_unaliased'])}; mean named set {_fmt(c.get('mean_set_size'))}"
+                f"tellable {_fmt(c.get('accuracy_tellable'))} of {c.get('n_tellable')}; "
+                f"mean named set {_fmt(c.get('mean_set_size'))}"
                 + (f"; truth in a named model {_fmt(c['truth_in_a_named_model'])}"
                    if "truth_in_a_named_model" in c else "") + ")" for c in e["classes"].values())
                 + f" | {e['share_null_or_outside']:.2f} |")
@@ -616,6 +673,15 @@ def _write_md(result, out):
                 f"{_fmt(e['generators'][g]['accuracy'])} ({_fmt(e['generators'][g].get('accuracy_visible'))})"
                 for e in s.values()) + f" | {vis:.3f} | {_fmt(al)} | {_fmt(size)} |")
         if goal in s:
+            lines += ["", f"## Misses at sigma = {goal} rad by reason", "",
+                      "Tellable data sets: null ones; visible effects whose own catalogue form reproduces the "
+                      "noise-free angles within sigma (catalogue), or that no catalogue model reproduces within "
+                      "sigma (outside). Reasons (studies.blind_diagnosis.miss_reason): " + "; ".join(MISSES) + ".", "",
+                      "| generator | n | right | " + " | ".join(MISSES) + " |", "|---|---|---|" + "---|" * len(MISSES)]
+            for g, e in s[goal]["generators"].items():
+                m = e.get("misses", {})
+                lines.append(f"| {g} | {e['n']} | {round(e['accuracy'] * e['n'])} | "
+                             + " | ".join(str(m.get(k, 0)) for k in MISSES) + " |")
             c = s[goal]["confusion"]
             for key, title in (("verdict", "class x verdict"), ("named", "generator x named model")):
                 m = c[key]

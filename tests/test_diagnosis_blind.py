@@ -150,6 +150,26 @@ def test_is_right_and_confusions():
     assert G[rows.index("nominal"), cols.index("baseline")] == 1
 
 
+def test_miss_reasons():
+    """A miss is put down to the first reason that holds: a null data set's is a false alarm; an
+    effect under two sigma is below the noise; one whose own catalogue form misses it by more than
+    sigma is not the catalogue's; one another model reproduces within sigma is aliased."""
+    assert bd.miss_reason("catalogue", True, False, 1.0, ["x"], 0.03) is None
+    assert bd.miss_reason("null", False, True, None, [], 0.03) == "false alarm"
+    assert bd.miss_reason("catalogue", False, False, 0.01, [], 0.03) == "below the noise"
+    assert bd.miss_reason("catalogue", False, True, 0.05, ["saturation"], 0.03) == \
+        "the catalogue's form misses the effect"
+    assert bd.miss_reason("catalogue", False, True, 0.02, ["saturation"], 0.03) == "aliased"
+    assert bd.miss_reason("outside", False, True, None, ["cure_depth+hinge_length"], 0.03) == "aliased"
+    assert bd.miss_reason("outside", False, True, None, [], 0.03) == "diagnoser"
+    recs = [{"kind": "catalogue", "sigma": 0.03, "visible": True, "truth_rms": 0.02, "aliases": []},
+            {"kind": "catalogue", "sigma": 0.03, "visible": True, "truth_rms": 0.05, "aliases": []},
+            {"kind": "outside", "sigma": 0.03, "visible": True, "aliases": ["saturation"]},
+            {"kind": "outside", "sigma": 0.03, "visible": False, "aliases": []},
+            {"kind": "null", "sigma": 0.03, "visible": True, "aliases": []}]
+    assert [bd._tellable(r) for r in recs] == [True, False, False, False, True]
+
+
 def test_cost_is_measured_in_a_child_process(tmp_path):
     c = bd.cost(300, tmp_path)
     assert c["rows"] == 300 and c["seconds"] > 0 and 20 < c["peak_rss_mib"] < 2048
