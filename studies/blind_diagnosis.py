@@ -23,10 +23,13 @@ Scored per class:
 * **null**: the verdict is ``no_gap``;
 * **outside**: the verdict is ``not_explained`` or ``partly_explained``.
 
-Reported: accuracy per class and per generator against sigma, confusion matrices (class x
-verdict; generator x named model) at sigma = 0.03 rad, each data set's *visibility* (RMS of
-the baseline fitted to its noise-free angles) and *aliases* (catalogue models that reproduce
-its noise-free angles within sigma), a sensitivity row (the thicker coat with a softer coat,
+Reported: accuracy per class and per generator against sigma (on all data sets, on the
+visible ones and on those a method could get right), the mean size of the named sets,
+confusion matrices (class x verdict; generator x named model) at sigma = 0.03 rad, each data
+set's *visibility* (RMS of the baseline fitted to its noise-free angles), *aliases*
+(catalogue models that reproduce its noise-free angles within sigma) and, for a catalogue
+effect, how closely its own catalogue form reproduces them; each miss with its reason
+(:func:`miss_reason`); a sensitivity row (the thicker coat with a softer coat,
 not counted in the classes), the diagnosis of Table 1 with the noise unknown and at assumed
 noise levels, the cost of diagnosing many rows (time and peak memory of a child process), and
 the checks of the shape diagnosis that a scan is the part.
@@ -72,14 +75,18 @@ GENERATOR_VERSION = 1
 VISIBLE = 2.0
 #: Whether each class's accuracy goal is expected to hold at sigma = 0.03 rad, and why not.
 EXPECT = {
-    "catalogue": (False, "goal not met: the nonlinear FEM's film thickening changes the folds by less than the "
-                         "noise (median visibility below sigma: no method can name it), and on Table 1's single "
-                         "film thickness the FEM's elastic coat and thicker coat alias with other d-softening "
-                         "effects; see the per-generator table, its visibility and aliases"),
-    "outside": (False, "goal not met: resin bleeding that grows with the coat is reproduced within the noise by "
-                       "cure_depth+hinge_length, or is below it, on part of its data sets (aliased: no method can "
-                       "call those unexplained); compare the accuracy on the data sets without an alias "
-                       "(accuracy_unaliased)"),
+    "catalogue": (False, "goal not met on all data sets: the nonlinear FEM's film thickening changes the folds by "
+                         "less than twice the noise on nearly every data set (below the noise: no method can name "
+                         "it; it alone keeps the class under 0.9), and a few FEM cure depths are below the noise, "
+                         "reproduced by another model within it, or not reproduced by the catalogue's cure_depth "
+                         "within it; on Table 1's single film thickness the d-softening effects are named together "
+                         "(the named set). The misses table gives each miss its reason; compare accuracy_visible "
+                         "and accuracy_tellable"),
+    "outside": (False, "goal not met on all data sets: resin bleeding that grows with the coat changes the folds "
+                       "by less than twice the noise on half of its data sets, and is reproduced within the noise "
+                       "by cure_depth+hinge_length on others (aliased: no method can call those unexplained); on "
+                       "the data sets where it can be told (accuracy_tellable) every out-of-catalogue effect is "
+                       "called not or partly explained"),
 }
 #: Limits of the cost measurement: 10,000 rows in 60 s and 1 GiB.
 COST_GOAL = {"rows": 10000, "seconds": 60.0, "rss_mib": 1024.0}
