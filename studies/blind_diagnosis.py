@@ -14,15 +14,22 @@ or outside the catalogue. Gaussian noise of standard deviation sigma is added an
 
 Scored per class:
 
-* **catalogue**: the diagnoser's ``best`` is the effect built in (for the FEM's elastic coat
-  also with ``hinge_length``: the FEM's fold spreads past the coat's end);
+* **catalogue**: the models the diagnoser names -- its chosen model, and the others the data
+  cannot tell from it (:attr:`gdfe.diagnosis.Diagnosis.named`) -- include the effect built in
+  (for the FEM's elastic coat also with ``hinge_length``: the FEM's fold spreads past the
+  coat's end); the mean size of the named sets is reported beside, so that naming many
+  models cannot pass for naming the right one, and so is the looser share in which a named
+  model contains the effect built in together with another effect;
 * **null**: the verdict is ``no_gap``;
 * **outside**: the verdict is ``not_explained`` or ``partly_explained``.
 
-Reported: accuracy per class and per generator against sigma, confusion matrices (class x
-verdict; generator x named model) at sigma = 0.03 rad, each data set's *visibility* (RMS of
-the baseline fitted to its noise-free angles) and *aliases* (catalogue models that reproduce
-its noise-free angles within sigma), a sensitivity row (the thicker coat with a softer coat,
+Reported: accuracy per class and per generator against sigma (on all data sets, on the
+visible ones and on those a method could get right), the mean size of the named sets,
+confusion matrices (class x verdict; generator x named model) at sigma = 0.03 rad, each data
+set's *visibility* (RMS of the baseline fitted to its noise-free angles), *aliases*
+(catalogue models that reproduce its noise-free angles within sigma) and, for a catalogue
+effect, how closely its own catalogue form reproduces them; each miss with its reason
+(:func:`miss_reason`); a sensitivity row (the thicker coat with a softer coat,
 not counted in the classes), the diagnosis of Table 1 with the noise unknown and at assumed
 noise levels, the cost of diagnosing many rows (time and peak memory of a child process), and
 the checks of the shape diagnosis that a scan is the part.
@@ -68,14 +75,18 @@ GENERATOR_VERSION = 1
 VISIBLE = 2.0
 #: Whether each class's accuracy goal is expected to hold at sigma = 0.03 rad, and why not.
 EXPECT = {
-    "catalogue": (False, "goal not met: the nonlinear FEM's film thickening changes the folds by less than the "
-                         "noise (median visibility below sigma: no method can name it), and on Table 1's single "
-                         "film thickness the FEM's elastic coat and thicker coat alias with other d-softening "
-                         "effects; see the per-generator table, its visibility and aliases"),
-    "outside": (False, "goal not met: resin bleeding that grows with the coat is reproduced within the noise by "
-                       "cure_depth+hinge_length, or is below it, on part of its data sets (aliased: no method can "
-                       "call those unexplained); compare the accuracy on the data sets without an alias "
-                       "(accuracy_unaliased)"),
+    "catalogue": (False, "goal not met on all data sets: the nonlinear FEM's film thickening changes the folds by "
+                         "less than twice the noise on nearly every data set (below the noise: no method can name "
+                         "it; it alone keeps the class under 0.9), and a few FEM cure depths are below the noise, "
+                         "reproduced by another model within it, or not reproduced by the catalogue's cure_depth "
+                         "within it; on Table 1's single film thickness the d-softening effects are named together "
+                         "(the named set). The misses table gives each miss its reason; compare accuracy_visible "
+                         "and accuracy_tellable"),
+    "outside": (False, "goal not met on all data sets: resin bleeding that grows with the coat changes the folds "
+                       "by less than twice the noise on half of its data sets, and is reproduced within the noise "
+                       "by cure_depth+hinge_length on others (aliased: no method can call those unexplained); on "
+                       "the data sets where it can be told (accuracy_tellable) every out-of-catalogue effect is "
+                       "called not or partly explained"),
 }
 #: Limits of the cost measurement: 10,000 rows in 60 s and 1 GiB.
 COST_GOAL = {"rows": 10000, "seconds": 60.0, "rss_mib": 1024.0}
@@ -166,10 +177,27 @@ def clean_fits(sp, alpha):
     return out
 
 
-def is_right(generator, best, verdict):
-    """Whether a diagnosis of a data set of ``generator`` is right (see the module docstring)."""
+def is_right(generator, named, verdict):
+    """Whether a diagnosis of a data set of ``generator`` is right (see the module docstring).
+
+    ``named``: the models the diagnosis names (its set of indistinguishable models, or one name)."""
     g = _generator(generator)
-    return best in g.answers if g.kind == "catalogue" else verdict in g.answers
+    named = [named] if isinstance(named, str) else list(named)
+    return any(n in g.answers for n in named) if g.kind == "catalogue" else verdict in g.answers
+
+
+def _effects(name):
+    return {e.split("[")[0] for e in name.split("+")} - {"baseline"}
+
+
+def truth_in_a_named_model(generator, named):
+    """Whether a model of ``named`` contains the effect built into a catalogue data set, alone or
+    with another effect (a looser reading than :func:`is_right`, reported beside it)."""
+    g = _generator(generator)
+    if g.kind != "catalogue":
+        return False
+    truth = _effects(g.answers[0])  # the effect built in (the first answer)
+    return any(truth <= _effects(n) for n in named)
 
 
 def _aliases(generator, fits, sigma):
@@ -184,6 +212,33 @@ def _aliases(generator, fits, sigma):
                   if n != "baseline" and v <= sigma and not truth & {e.split("[")[0] for e in n.split("+")})
 
 
+#: Why a diagnosis missed, in the order the reasons are tried (:func:`miss_reason`).
+MISSES = ("false alarm", "below the noise", "the catalogue's form misses the effect", "aliased", "diagnoser")
+
+
+def miss_reason(kind, right, visible, truth_rms, aliases, sigma):
+    """Why a diagnosis of a data set is wrong (None when it is right).
+
+    ``false alarm``: a null data set not called ``no_gap`` (the tests' level says how often);
+    ``below the noise``: the effect's visibility is under :data:`VISIBLE` sigma; ``the
+    catalogue's form misses the effect``: no model counted right reproduces the noise-free
+    angles within sigma (``truth_rms > sigma``), so the effect built in is not the
+    catalogue's effect to within the noise; ``aliased``: another catalogue model reproduces
+    them within sigma; ``diagnoser``: none of these -- a method could have been right.
+    """
+    if right:
+        return None
+    if kind == "null":
+        return "false alarm"
+    if not visible:
+        return "below the noise"
+    if kind == "catalogue" and truth_rms is not None and truth_rms > sigma:
+        return "the catalogue's form misses the effect"
+    if aliases:
+        return "aliased"
+    return "diagnoser"
+
+
 def _job(spec):
     """Simulate one data set (or read it from the cache) and diagnose it at every noise level."""
     from gdfe.diagnosis import diagnose
@@ -193,21 +248,28 @@ def _job(spec):
     t_sim = time.perf_counter() - t0
     fits = clean_fits(sp, clean)
     visibility = fits["baseline"]
+    g = _generator(spec["generator"])
+    truth_rms = min(fits[a] for a in g.answers if a in fits) if g.kind == "catalogue" else None
     rng = np.random.default_rng(list(spec["seed"]) + [1])
     records = []
     for sigma in spec["sigmas"]:
         noisy = clean + sigma * rng.standard_normal(clean.size)
         t1 = time.perf_counter()
         diag = diagnose(_tests(sp, noisy), sigma=sigma)
-        right = is_right(spec["generator"], diag.best.name, diag.verdict.verdict)
+        named = [f.name for f in diag.named]
+        right = is_right(spec["generator"], named, diag.verdict.verdict)
+        visible = bool(visibility >= VISIBLE * sigma)
+        aliases = _aliases(spec["generator"], fits, sigma)
         records.append({
             "generator": spec["generator"], "kind": spec["kind"], "sensitivity": spec["sensitivity"],
             "design": spec["design"], "rep": spec["rep"], "sigma": sigma,
             "strengths": strengths if spec["generator"] != "hidden_lots" else {"u": strengths["u"]},
             "K": sp.K, "best": diag.best.name, "selected": diag.selected.name, "verdict": diag.verdict.verdict,
+            "named": named, "set_size": len(named),
+            "truth_in_a_named_model": truth_in_a_named_model(spec["generator"], named),
             "removed": diag.verdict.removed, "correct": bool(right),
-            "visibility": visibility, "visible": bool(visibility >= VISIBLE * sigma),
-            "aliases": _aliases(spec["generator"], fits, sigma),
+            "visibility": visibility, "visible": visible, "aliases": aliases, "truth_rms": truth_rms,
+            "miss": miss_reason(spec["kind"], right, visible, truth_rms, aliases, sigma),
             "baseline_loo_rmse": diag.baseline.loo_rmse, "best_loo_rmse": diag.best.loo_rmse,
             "converged": bool(ok.all()), "seconds_diagnose": time.perf_counter() - t1, "seconds_simulate": t_sim,
         })
@@ -252,6 +314,27 @@ def _mean(xs):
     return float(np.mean(xs)) if xs else None
 
 
+def _tellable(r):
+    """Whether a method could be right on a data set: null data; visible effects whose own
+    catalogue form reproduces them within sigma (catalogue) or that no catalogue model
+    reproduces within sigma (outside)."""
+    if r["kind"] == "null":
+        return True
+    if not r["visible"]:
+        return False
+    if r["kind"] == "catalogue":
+        return r.get("truth_rms") is None or r["truth_rms"] <= r["sigma"]
+    return not r["aliases"]
+
+
+def _misses(records):
+    out = {}
+    for r in records:
+        if r.get("miss"):
+            out[r["miss"]] = out.get(r["miss"], 0) + 1
+    return {m: out[m] for m in MISSES if m in out}
+
+
 def summarise(records, sigmas):
     """Accuracy per class, per generator and per design set at each noise level."""
     from studies.diagnosis_generators import KINDS
@@ -267,15 +350,26 @@ def summarise(records, sigmas):
             kr = [r for r in main if r["kind"] == k]
             vis = [r for r in kr if r["kind"] == "null" or r["visible"]]
             un = [r for r in kr if r["kind"] != "outside" or not r["aliases"]]
+            told = [r for r in kr if _tellable(r)]
             entry["classes"][k] = {"n": len(kr), "accuracy": _mean(r["correct"] for r in kr),
                                    "n_visible": len(vis), "accuracy_visible": _mean(r["correct"] for r in vis),
-                                   "n_unaliased": len(un), "accuracy_unaliased": _mean(r["correct"] for r in un)}
+                                   "n_unaliased": len(un), "accuracy_unaliased": _mean(r["correct"] for r in un),
+                                   "n_tellable": len(told), "accuracy_tellable": _mean(r["correct"] for r in told),
+                                   "mean_set_size": _mean(r.get("set_size", 1) for r in kr),
+                                   "ambiguous": _mean(r.get("set_size", 1) > 1 for r in kr),
+                                   "misses": _misses(kr)}
+            if k == "catalogue":
+                entry["classes"][k]["truth_in_a_named_model"] = _mean(r.get("truth_in_a_named_model", False)
+                                                                      for r in kr)
         for g in dict.fromkeys(r["generator"] for r in rs):
             gr = [r for r in rs if r["generator"] == g]
             entry["generators"][g] = {
                 "n": len(gr), "accuracy": _mean(r["correct"] for r in gr),
                 "visible": _mean(r["visible"] for r in gr), "aliased": _mean(bool(r["aliases"]) for r in gr),
                 "verdicts": {v: sum(r["verdict"] == v for r in gr) for v in dict.fromkeys(r["verdict"] for r in gr)},
+                "accuracy_visible": _mean(r["correct"] for r in gr if r["kind"] == "null" or r["visible"]),
+                "misses": _misses(gr),
+                "mean_set_size": _mean(r.get("set_size", 1) for r in gr),
                 "median_visibility": float(np.median([r["visibility"] for r in gr]))}
         for dset in dict.fromkeys(r["design"] for r in main):
             dr = [r for r in main if r["design"] == dset]
@@ -299,7 +393,8 @@ def table1_findings(resolution="coarse"):
     assumed = {}
     for s in TABLE1_SIGMAS:
         ds = diagnose(gdfe.TABLE1, sigma=s)
-        assumed[f"{s:g}"] = {"verdict": ds.verdict.verdict, "best": ds.best.name, "text": ds.verdict.text}
+        assumed[f"{s:g}"] = {"verdict": ds.verdict.verdict, "best": ds.best.name,
+                             "named": [f.name for f in ds.named], "text": ds.verdict.text}
     need_b = diag.lack_of_fit["baseline"]["sigma_needed"]
     need = diag.lack_of_fit["best"]["sigma_needed"]
     text = [
@@ -312,7 +407,7 @@ def table1_findings(resolution="coarse"):
         f"baseline's held-out RMSE removed; not ruled out: {', '.join(diag.candidates)}.",
         "What it says about the noise: the baseline is within the noise only if sigma >= "
         f"{need_b:.3g} rad, {best.name} only if sigma >= {need:.3g} rad. Assumed noise: "
-        + "; ".join(f"sigma = {s} rad -> {v['verdict']} ({v['best']})" for s, v in assumed.items())
+        + "; ".join(f"sigma = {s} rad -> {v['verdict']} ({', '.join(v['named'])})" for s, v in assumed.items())
         + ". The paper states no measurement error, so which of these holds is for the noise of the "
           "angle measurement to say (give it with --sigma).",
         "Where: " + diag.regime,
@@ -329,13 +424,14 @@ def cost(rows, out, sigma=0.03, seed=0):
     The tests are random designs (``L`` 1.5-6 mm, ``d`` 0.1-0.5 mm, ``h`` 0.2-0.4 mm) with an
     oven temperature column and three batches, angles of a cure-depth world plus noise. The
     child runs ``python -m gdfe diagnose FILE --sigma S --check none --json OUT`` and reports
-    its own wall time and peak resident memory (``resource.getrusage``).
+    its own wall time, processor time (user + system, ``resource.getrusage``: on a machine
+    shared with other work the wall time also counts their share) and peak resident memory.
 
     Returns
     -------
     dict
-        ``rows``, ``seconds``, ``peak_rss_mib``, ``verdict``, ``best``, ``load`` (1-minute load
-        average before the run), ``command``.
+        ``rows``, ``seconds`` (wall), ``cpu_seconds``, ``peak_rss_mib``, ``verdict``, ``best``,
+        ``named``, ``load`` (1-minute load average before the run), ``cores``, ``command``.
     """
     import subprocess
     import sys
@@ -357,17 +453,20 @@ def cost(rows, out, sigma=0.03, seed=0):
     child = ("import json, resource, sys, time\n"
              "from gdfe.cli import main\n"
              "t0 = time.perf_counter()\n"
+             "u0 = resource.getrusage(resource.RUSAGE_SELF)\n"
              "rc = main(sys.argv[1:])\n"
              "dt = time.perf_counter() - t0\n"
-             "rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0\n"
-             "print(json.dumps({'rc': rc, 'seconds': dt, 'peak_rss_mib': rss}))\n")
+             "u = resource.getrusage(resource.RUSAGE_SELF)\n"
+             "cpu = u.ru_utime - u0.ru_utime + u.ru_stime - u0.ru_stime\n"
+             "print(json.dumps({'rc': rc, 'seconds': dt, 'cpu_seconds': cpu, 'peak_rss_mib': u.ru_maxrss / 1024.0}))\n")
     args = ["diagnose", str(csv), "--sigma", f"{sigma:g}", "--check", "none", "--json", str(js)]
     load = os.getloadavg()[0]
     done = subprocess.run([sys.executable, "-c", child, *args], capture_output=True, text=True, check=True)
     m = json.loads(done.stdout.strip().splitlines()[-1])
     d = json.loads(js.read_text())
-    return {"rows": rows, "seconds": m["seconds"], "peak_rss_mib": m["peak_rss_mib"], "rc": m["rc"],
-            "verdict": d["verdict"], "best": d["best"], "load": load, "cores": os.cpu_count(),
+    return {"rows": rows, "seconds": m["seconds"], "cpu_seconds": m["cpu_seconds"], "peak_rss_mib": m["peak_rss_mib"],
+            "rc": m["rc"], "verdict": d["verdict"], "best": d["best"], "named": d["named"], "load": load,
+            "cores": os.cpu_count(),
             "command": "gdfe " + " ".join(args)}
 
 
@@ -477,8 +576,10 @@ def run(resolution="default", out=None, n_jobs=None, reps=None, sigmas=None, cac
     if "cost" in parts:  # first, so that no worker of the benchmark shares the machine with it
         c = cost(settings["rows"], Path(out) if out is not None else Path("out") / NAME)
         result["cost"] = c
-        heads.append(headline(f"diagnosis of {c['rows']} rows [s]", c["seconds"], tol=COST_GOAL["seconds"],
-                              kind="le", unit="s", paper_text="issue 12 goal: 10,000 rows in <= 60 s"))
+        heads.append(headline(f"diagnosis of {c['rows']} rows, processor time [s]", c["cpu_seconds"],
+                              tol=COST_GOAL["seconds"], kind="le", unit="s",
+                              paper_text="issue 12 goal: 10,000 rows in <= 60 s on 2 cores",
+                              note=f"wall {c['seconds']:.1f} s at load {c['load']:.1f} on {c['cores']} cores"))
         heads.append(headline(f"peak memory of the {c['rows']}-row diagnosis [MiB]", c["peak_rss_mib"],
                               tol=COST_GOAL["rss_mib"], kind="le", unit="MiB",
                               paper_text="issue 12 goal: <= 1 GiB"))
@@ -528,12 +629,15 @@ def _summary_sentences(result):
     parts = []
     if isinstance(s, dict) and goal in s:
         acc = s[goal]["classes"]
-        parts.append("accuracy at sigma = 0.03 rad: " + ", ".join(f"{k} {v['accuracy']:.2f}" for k, v in acc.items()))
+        parts.append("accuracy at sigma = 0.03 rad: " + ", ".join(
+            f"{k} {v['accuracy']:.2f}" + (f" (visible {v['accuracy_visible']:.2f}, mean named set "
+                                          f"{v['mean_set_size']:.2f})" if k == "catalogue" else "")
+            for k, v in acc.items()))
     if "table1" in result:
         parts.append(f"Table 1: {result['table1']['verdict']} with the noise unknown")
     if "cost" in result:
-        parts.append(f"{result['cost']['rows']} rows in {result['cost']['seconds']:.1f} s, "
-                     f"{result['cost']['peak_rss_mib']:.0f} MiB")
+        parts.append(f"{result['cost']['rows']} rows in {result['cost']['cpu_seconds']:.1f} s of processor time "
+                     f"({result['cost']['seconds']:.1f} s wall), {result['cost']['peak_rss_mib']:.0f} MiB")
     return {"paper": "The paper fits Eq. 1 to Table 1 and diagnoses nothing.", "ours": "; ".join(parts),
             "verdict": (result.get("findings") or [""])[0], "discrepancy": ""}
 
@@ -555,19 +659,36 @@ def _write_md(result, out):
                   "|---|" + "---|" * (len(s[next(iter(s))]["classes"]) + 1)]
         for sig, e in s.items():
             lines.append(f"| {sig} | " + " | ".join(
-                f"{_fmt(c['accuracy'])} ({c['n']}; visible {_fmt(c['accuracy_visible'])}, unaliased "
-                f"{_fmt(c['accuracy_unaliased'])})" for c in e["classes"].values())
+                f"{_fmt(c['accuracy'])} ({c['n']}; visible {_fmt(c['accuracy_visible'])} of {c['n_visible']}, "
+                f"tellable {_fmt(c.get('accuracy_tellable'))} of {c.get('n_tellable')}; "
+                f"mean named set {_fmt(c.get('mean_set_size'))}"
+                + (f"; truth in a named model {_fmt(c['truth_in_a_named_model'])}"
+                   if "truth_in_a_named_model" in c else "") + ")" for c in e["classes"].values())
                 + f" | {e['share_null_or_outside']:.2f} |")
         lines += ["", "## Accuracy per generator against sigma", "",
-                  "| generator | " + " | ".join(s) + " | median visibility [rad] | aliased at 0.03 |",
-                  "|---|" + "---|" * (len(s) + 2)]
+                  "Accuracy on all data sets (on the visible ones, visibility >= "
+                  f"{VISIBLE:g} sigma, in brackets), the median visibility, the share of data sets with an "
+                  f"alias and the mean size of the named sets at sigma = {SIGMA_GOAL:g} rad.", "",
+                  "| generator | " + " | ".join(s) + " | median visibility [rad] | aliased | mean named set |",
+                  "|---|" + "---|" * (len(s) + 3)]
         goal = f"{SIGMA_GOAL:g}"
         for g in s[next(iter(s))]["generators"]:
             vis = s[next(iter(s))]["generators"][g]["median_visibility"]
             al = s[goal]["generators"][g]["aliased"] if goal in s else None
-            lines.append(f"| {g} | " + " | ".join(_fmt(e["generators"][g]["accuracy"]) for e in s.values())
-                         + f" | {vis:.3f} | {_fmt(al)} |")
+            size = s[goal]["generators"][g].get("mean_set_size") if goal in s else None
+            lines.append(f"| {g} | " + " | ".join(
+                f"{_fmt(e['generators'][g]['accuracy'])} ({_fmt(e['generators'][g].get('accuracy_visible'))})"
+                for e in s.values()) + f" | {vis:.3f} | {_fmt(al)} | {_fmt(size)} |")
         if goal in s:
+            lines += ["", f"## Misses at sigma = {goal} rad by reason", "",
+                      "Tellable data sets: null ones; visible effects whose own catalogue form reproduces the "
+                      "noise-free angles within sigma (catalogue), or that no catalogue model reproduces within "
+                      "sigma (outside). Reasons (studies.blind_diagnosis.miss_reason): " + "; ".join(MISSES) + ".", "",
+                      "| generator | n | right | " + " | ".join(MISSES) + " |", "|---|---|---|" + "---|" * len(MISSES)]
+            for g, e in s[goal]["generators"].items():
+                m = e.get("misses", {})
+                lines.append(f"| {g} | {e['n']} | {round(e['accuracy'] * e['n'])} | "
+                             + " | ".join(str(m.get(k, 0)) for k in MISSES) + " |")
             c = s[goal]["confusion"]
             for key, title in (("verdict", "class x verdict"), ("named", "generator x named model")):
                 m = c[key]
@@ -577,9 +698,9 @@ def _write_md(result, out):
                     lines.append(f"| {row} | " + " | ".join(str(v) for v in vals) + " |")
     if "cost" in result:
         c = result["cost"]
-        lines += ["", "## Cost", "", f"`{c['command']}`: {c['rows']} rows in {c['seconds']:.1f} s, peak RSS "
-                  f"{c['peak_rss_mib']:.0f} MiB (load {c['load']:.2f} on {c['cores']} cores before the run); "
-                  f"verdict {c['verdict']}, best {c['best']}."]
+        lines += ["", "## Cost", "", f"`{c['command']}`: {c['rows']} rows in {c['seconds']:.1f} s wall, "
+                  f"{c['cpu_seconds']:.1f} s of processor time, peak RSS {c['peak_rss_mib']:.0f} MiB (load "
+                  f"{c['load']:.2f} on {c['cores']} cores before the run); verdict {c['verdict']}, best {c['best']}."]
     if "scan_checks" in result:
         sc = result["scan_checks"]
         lines += ["", "## Is the scan the part?", "", "| case | same part | matches | relative residual | coverage | "

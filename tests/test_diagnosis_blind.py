@@ -126,6 +126,13 @@ def test_is_right_and_confusions():
     assert bd.is_right("nominal", "baseline", "no_gap") and not bd.is_right("nominal", "baseline", "not_explained")
     assert bd.is_right("hard_cap", "saturation", "partly_explained")
     assert not bd.is_right("hard_cap", "saturation", "explained")
+    # a named set is right when it holds the answer; the looser reading counts a pair with the truth
+    assert bd.is_right("cure_depth", ["film_thickening", "cure_depth"], "explained")
+    assert not bd.is_right("cure_depth", ["cure_depth+passive_stiffness"], "explained")
+    assert bd.truth_in_a_named_model("cure_depth", ["cure_depth+passive_stiffness"])
+    assert bd.truth_in_a_named_model("partial_activation", ["partial_activation[T_C]+batch[batch]"])
+    assert not bd.truth_in_a_named_model("cure_depth", ["film_thickening", "hinge_length+saturation"])
+    assert not bd.truth_in_a_named_model("nominal", ["baseline"])
     recs = [{"generator": "cure_depth", "kind": "catalogue", "sensitivity": False, "best": "cure_depth",
              "verdict": "explained"},
             {"generator": "cure_depth", "kind": "catalogue", "sensitivity": False, "best": "cure_depth+hinge_length",
@@ -141,6 +148,26 @@ def test_is_right_and_confusions():
     assert G[rows.index("cure_depth"), cols.index("pair with the truth")] == 1
     assert G[rows.index("hard_cap"), cols.index("other pair")] == 1
     assert G[rows.index("nominal"), cols.index("baseline")] == 1
+
+
+def test_miss_reasons():
+    """A miss is put down to the first reason that holds: a null data set's is a false alarm; an
+    effect under two sigma is below the noise; one whose own catalogue form misses it by more than
+    sigma is not the catalogue's; one another model reproduces within sigma is aliased."""
+    assert bd.miss_reason("catalogue", True, False, 1.0, ["x"], 0.03) is None
+    assert bd.miss_reason("null", False, True, None, [], 0.03) == "false alarm"
+    assert bd.miss_reason("catalogue", False, False, 0.01, [], 0.03) == "below the noise"
+    assert bd.miss_reason("catalogue", False, True, 0.05, ["saturation"], 0.03) == \
+        "the catalogue's form misses the effect"
+    assert bd.miss_reason("catalogue", False, True, 0.02, ["saturation"], 0.03) == "aliased"
+    assert bd.miss_reason("outside", False, True, None, ["cure_depth+hinge_length"], 0.03) == "aliased"
+    assert bd.miss_reason("outside", False, True, None, [], 0.03) == "diagnoser"
+    recs = [{"kind": "catalogue", "sigma": 0.03, "visible": True, "truth_rms": 0.02, "aliases": []},
+            {"kind": "catalogue", "sigma": 0.03, "visible": True, "truth_rms": 0.05, "aliases": []},
+            {"kind": "outside", "sigma": 0.03, "visible": True, "aliases": ["saturation"]},
+            {"kind": "outside", "sigma": 0.03, "visible": False, "aliases": []},
+            {"kind": "null", "sigma": 0.03, "visible": True, "aliases": []}]
+    assert [bd._tellable(r) for r in recs] == [True, False, False, False, True]
 
 
 def test_cost_is_measured_in_a_child_process(tmp_path):

@@ -70,8 +70,13 @@ def test_all_L_equal_never_names_hinge_length(t1, seed):
     assert not np.isfinite(hl.se).any()
     assert any(e["name"] == "hinge_length" and "not identifiable" in e["reason"] for e in diag.excluded)
     # at one film thickness cure_depth, film_thickening and passive_stiffness soften the
-    # d-dependence alike (the blind benchmark's aliases): any of them is a right answer here
+    # d-dependence alike (the blind benchmark's aliases): the diagnosis names those it cannot tell
+    # apart, the true one among them, and asks for another film thickness
     assert diag.best.name in ("cure_depth", "film_thickening", "passive_stiffness")
+    named = [f.name for f in diag.named]
+    assert "cure_depth" in named and "hinge_length" not in " ".join(named)
+    if len(named) > 1:
+        assert diag.separation["input"] == "h_mm"
 
 
 # -- identifiability, ties, bounds --------------------------------------------------------------------
@@ -270,6 +275,12 @@ def test_partial_activation_recovers_the_logistic(t1):
     assert math.sqrt(rss / 18) < 1e-6
     np.testing.assert_allclose(x, [0.1, 132.0, 0.12], rtol=1e-4)
     np.testing.assert_allclose(activation_fraction(np.array([132.0, 1e6, -1e6]), 132.0, 0.12), [0.5, 1.0, 0.0])
+    # a complex step gives the derivative of the logistic: df/dx50 = -rate f (1 - f)
+    T = np.linspace(110.0, 170.0, 25)
+    f = activation_fraction(T, 132.0, 0.12)
+    step = activation_fraction(T, 132.0 + 1e-20j, 0.12)
+    np.testing.assert_allclose(step.real, f, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(step.imag / 1e-20, -0.12 * f * (1 - f), rtol=1e-12, atol=1e-18)
 
 
 def test_partial_activation_in_a_temperature_column_is_named(t1):

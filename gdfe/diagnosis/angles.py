@@ -23,11 +23,18 @@ columns) and
    effect on each group column on top of it (judged on leave-one-out: a group's own
    contraction cannot be predicted for a group left out) and drops any effect the batch
    makes unnecessary;
-6. says **where** the residuals of the baseline and of the best lie, and whether any
+6. with a known **noise**: the baseline within it is the best (there is nothing to
+   explain); a chosen model (the baseline included) that the lack-of-fit test rejects gives
+   way to one within the noise that the held-out errors do not rule out
+   (:func:`within_noise_step`);
+7. **names** every model the data cannot tell from the best, and the test that would tell
+   them apart (:mod:`gdfe.diagnosis.separate`): at Table 1's single film thickness, for
+   one, several effects soften the dependence on ``d`` alike;
+8. says **where** the residuals of the baseline and of the best lie, and whether any
    structure is left (:mod:`gdfe.diagnosis.where`);
-7. gives the **verdict** (``no_gap``, ``explained``, ``partly_explained``,
-   ``not_explained``; :func:`gdfe.diagnosis.verdict.decide`). With a known noise and the
-   baseline within it, the best is the baseline: there is nothing to explain.
+9. gives the **verdict** (``no_gap``, ``explained``, ``partly_explained``,
+   ``not_explained``; :func:`gdfe.diagnosis.verdict.decide`), naming all the
+   indistinguishable models.
 
 The cost grows linearly with the tests (k-fold cross-validation above
 :data:`gdfe.diagnosis.fit.LOO_EXACT` tests, multi-start iterations on a subset above
@@ -47,11 +54,12 @@ from gdfe._validation import GdfeError, GdfeTypeError, check_choice, is_finite_n
 from gdfe.calibration import FoldingTests, load_folding_tests
 from gdfe.diagnosis.effects import EFFECTS, Model, catalogue
 from gdfe.diagnosis.fit import STEP_SE, EffectFit, compare, evaluate, mark_equal, select
+from gdfe.diagnosis.separate import indistinguishable, separating_test
 from gdfe.diagnosis.verdict import LEVEL, MEANINGFUL, Noise, Verdict, decide, gap, lack_of_fit, noise_of
 from gdfe.diagnosis.where import group_analysis, residual_analysis, structure
 
-__all__ = ["Diagnosis", "Columns", "diagnose", "numeric_columns", "read_columns", "SIGMA_COLUMN",
-           "CHECK_TESTS"]
+__all__ = ["Diagnosis", "Columns", "diagnose", "within_noise_step", "numeric_columns", "read_columns",
+           "SIGMA_COLUMN", "CHECK_TESTS"]
 
 log = logging.getLogger(__name__)
 
@@ -200,13 +208,21 @@ class Diagnosis:
         Every effect model fitted (single effects, pairs, batch steps), best held-out error first.
     best : EffectFit
         The chosen model (the baseline when no effect earns its parameters, or when the
-        baseline is within a known noise). Its ``model.effects``, ``model.param_names``,
-        ``params``, ``se`` and ``ci95`` (or ``param_dict()``, ``se_dict()``, ``ci_dict()``,
-        ``parameters()``) say what was found; :data:`gdfe.diagnosis.EFFECTS` says what each
+        baseline is within a known noise; with a known noise, a model within it in place of
+        a held-out choice the lack-of-fit test rejects, :func:`within_noise_step`). Its
+        ``model.effects``, ``model.param_names``, ``params``, ``se`` and ``ci95`` (or
+        ``param_dict()``, ``se_dict()``, ``ci_dict()``, ``parameters()``) say what was found; :data:`gdfe.diagnosis.EFFECTS` says what each
         parameter means.
     selected : EffectFit
         The model the held-out errors alone choose (``best`` unless the baseline is within
-        the noise).
+        the noise, or the lack-of-fit test rejected it for a model within the noise).
+    named : list of EffectFit
+        The models the data cannot tell from ``best`` (``best`` among them; fewest effects
+        first), :func:`gdfe.diagnosis.separate.indistinguishable`; one model when the
+        choice is clear.
+    separation : dict or None
+        Where the models of ``named`` would disagree most
+        (:func:`gdfe.diagnosis.separate.separating_test`); None for one model.
     candidates : list of str
         Models within one standard error of the chosen model's held-out error, or below it.
     where, where_best : list of dict
@@ -253,6 +269,8 @@ class Diagnosis:
     excluded: list = dataclasses.field(default_factory=list)
     warnings: list = dataclasses.field(default_factory=list)
     check: dict | None = None
+    named: list = dataclasses.field(default_factory=list)
+    separation: dict | None = None
 
     def _kind(self, fit, kind=None):
         kind = kind or self.held_out
@@ -335,6 +353,8 @@ class Diagnosis:
             "residuals": residuals,
             "effects": effects,
             "best": self.best.name,
+            "named": [f.name for f in self.named] or [self.best.name],
+            "separation": self.separation,
             "selected": self.selected.name,
             "best_detail": {**entry(self.best), "where": self.where_best, "regime": self.regime_best},
             "selection": ("effects: the best first, then the others by rank, the order of their "
@@ -345,7 +365,12 @@ class Diagnosis:
                           f"by more than {STEP_SE[1]:g}; models whose parameters the data cannot identify or "
                           "whose predictions equal a simpler model's are never chosen; a batch effect is then "
                           "tried on the chosen model on leave-one-out error; with a known noise and the "
-                          "baseline within it, the best is the baseline"),
+                          "baseline within it, the best is the baseline; with a known noise and the chosen "
+                          "model rejected by the lack-of-fit test, a model within the noise takes its place "
+                          f"(no more effects and not beaten by {STEP_SE[0]:g} standard error(s), or more effects "
+                          f"and better by {STEP_SE[0]:g}); named: the models the best does not beat by "
+                          f"{STEP_SE[0]:g} standard error(s) with no more effects (and within the noise when "
+                          "the best is), fewest effects first"),
             "verdict_rules": {"level": LEVEL, "meaningful": MEANINGFUL},
             "candidates": self.candidates,
             "excluded": self.excluded,
@@ -390,9 +415,16 @@ class Diagnosis:
                        + (" (at bound)" if p["at_bound"] else "") for p in self.best.parameters())
         lines.append(f"best: {self.best.name} ({bp}); {ho} RMSE {self.held_out_rmse(b):.3f} -> "
                      f"{self.held_out_rmse(self.best):.3f} rad ({100 * self.shrink(self.best):.0f} % less)")
-        if self.selected is not self.best:
+        if self.selected is not self.best and not self.best.model.effects:
             lines.append(f"  (held-out errors alone would name {self.selected.name}; the baseline is within the "
                          f"noise, so it is not needed)")
+        elif self.selected is not self.best:
+            lines.append(f"  (held-out errors alone would name {self.selected.name}, which the lack-of-fit test "
+                         f"rejects; {self.best.name} is within the noise)")
+        if len(self.named) > 1:
+            lines.append("indistinguishable on these data: " + ", ".join(f.name for f in self.named))
+            if self.separation is not None:
+                lines.append("  " + self.separation["text"])
         lines.append("after the best model: " + self.regime_best)
         lines += [f"warning: {w}" for w in self.warnings]
         return "\n".join(lines)
@@ -503,9 +535,32 @@ def diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=N
     where, regime = residual_analysis(base.residuals, {**inputs, "predicted": base.predicted}, cols.groups)
     by_group = group_analysis(base.residuals, cols.groups)
     struct_base = structure(where + by_group)
+    lofs = {}
+
+    def within(f):
+        """Whether ``f`` passes the lack-of-fit test (None with the noise unknown)."""
+        if f.name not in lofs:
+            lofs[f.name] = lack_of_fit(f.residuals, f.model.n_params, noise)
+        return lofs[f.name]["within"]
+
+    def kind_of(f):
+        return "loo" if f.held_out_rmse(kind) is None else kind
+
     best = selected
     if noise.known and lof_base["within"] and not struct_base:
         best = base  # within the noise: nothing to explain
+    elif noise.known and not within(best):
+        best = within_noise_step(best, fits, alpha, within, kind_of, weights)
+    named = indistinguishable(best, [base] + fits, alpha, kind_of, within if noise.known else None,
+                              STEP_SE[0], weights, sigma=noise.sigma if noise.known else None)
+
+    def x_of(m):
+        return cols.process[m.process] if m.process else None
+
+    def group_of(m):
+        return m.group_index(cols.groups[m.group]) if m.group else None
+
+    separation = separating_test(named, L, d, h, x_of, group_of, sigma=noise.value) if len(named) > 1 else None
     lof_best = lack_of_fit(best.residuals, best.model.n_params, noise)
     where_b, regime_b = residual_analysis(best.residuals, {**inputs, "predicted": best.predicted}, cols.groups)
     by_group_b = group_analysis(best.residuals, cols.groups)
@@ -513,7 +568,8 @@ def diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=N
     verdict = decide(best_name=best.name, best_is_baseline=not best.model.effects, lof_base=lof_base,
                      lof_best=lof_best, structure_base=struct_base, structure_best=struct_best,
                      gap_base=gap(alpha, base.loo_predicted, noise), gap_best=gap(alpha, best.loo_predicted, noise),
-                     noise=noise)
+                     noise=noise, named=[f.name for f in named],
+                     separation=None if separation is None else separation["text"])
     excluded = [{"name": f.name, "reason": (f"parameters not identifiable from these data "
                                             f"({', '.join(f.unidentified)})" if not f.identifiable else
                                             f"predictions equal those of {f.equals}")}
@@ -522,7 +578,8 @@ def diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=N
                      candidates=cands, where=where + by_group, regime=regime, where_best=where_b + by_group_b,
                      regime_best=regime_b, inputs=inputs, columns=cols, noise=noise, verdict=verdict,
                      selected=selected, lack_of_fit={"baseline": lof_base, "best": lof_best},
-                     structure=struct_base, structure_best=struct_best, excluded=excluded)
+                     structure=struct_base, structure_best=struct_best, excluded=excluded, named=named,
+                     separation=separation)
     diag.warnings = _warnings(diag)
     if check:
         from gdfe.diagnosis.forward import gdfe_check
@@ -572,6 +629,49 @@ def _batch_step(best, fits, cols, fit, alpha, weights, n):
         if not better:
             current = f
     return current, tried
+
+
+def within_noise_step(chosen, fits, alpha, within, kind_of, weights=None, step=STEP_SE[0]):
+    """With a known noise, a chosen model that the lack-of-fit test rejects gives way to one
+    within the noise.
+
+    Candidates are the usable models within the noise with at most as many effects as
+    ``chosen`` whose held-out error ``chosen`` does not beat by ``step`` standard errors (the
+    data prefer neither on held-out tests, and only one of them fits), and those with more
+    effects that beat ``chosen`` by ``step`` standard errors (the one-standard-error rule by
+    which any effect is named). The one with the fewest effects, then the smallest held-out
+    mean squared error, is returned; ``chosen`` when there is none.
+
+    Parameters
+    ----------
+    chosen : EffectFit
+        The held-out choice (the baseline when no effect earned its parameters: then only
+        models that beat it by ``step`` standard errors are candidates).
+    fits : list of EffectFit
+    alpha : (n,) float array [rad]
+    within : callable
+        ``within(fit) -> bool``: the lack-of-fit test against the known noise.
+    kind_of : callable
+        ``kind_of(fit) -> "loo" | "logo"``.
+    weights : (n,) float array, optional
+    step : float
+    """
+    alpha = np.asarray(alpha, float)
+    found = []
+    for f in fits:
+        if f is chosen or not f.model.effects or not f.usable or not within(f):
+            continue
+        k = "logo" if kind_of(f) == kind_of(chosen) == "logo" else "loo"
+        if f.model.level <= chosen.model.level:
+            beaten, mean, _ = compare(chosen, f, alpha, k, step, weights)
+            ok = not beaten and math.isfinite(mean)
+        else:
+            ok, mean, _ = compare(f, chosen, alpha, k, step, weights)
+        if ok:
+            found.append((f.model.level, float(np.mean((alpha - f.held_out(k)) ** 2)), f.name, f))
+    if not found:
+        return chosen
+    return min(found, key=lambda t: t[:3])[3]
 
 
 def _warnings(diag):

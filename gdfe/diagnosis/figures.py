@@ -142,6 +142,9 @@ def _summary_md(diag, files):
                   f"{diag.held_out_rmse(best):.3f} rad, {100 * diag.shrink(best):.0f} % of the baseline's "
                   f"held-out error removed. Not ruled out by the held-out errors (within one standard "
                   f"error of the best or below it): {', '.join(diag.candidates)}.", ""]
+    if len(diag.named) > 1:
+        lines += [f"Indistinguishable on these data (fewest effects first): {', '.join(f.name for f in diag.named)}"
+                  + (f"; {diag.separation['text']}" if diag.separation else "") + ".", ""]
     from gdfe.diagnosis.effects import EFFECTS
 
     for e in best.model.effects:

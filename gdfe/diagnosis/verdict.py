@@ -39,6 +39,10 @@ against every input, the predicted angle and every group column):
 ``not_explained``
     there is a gap, and no candidate removes a meaningful part of it.
 
+When the data cannot tell the chosen model from others
+(:func:`gdfe.diagnosis.separate.indistinguishable`), ``explained`` and ``partly_explained``
+name them all, fewest effects first, and the test that would separate them.
+
 With the noise unknown, "within the noise" cannot be tested: the verdict then rests on the
 held-out choice and the residual structure alone (``no_gap``: no effect earns its parameters
 and no structure; ``explained``: an effect is chosen and leaves no structure; and so on), and
@@ -222,14 +226,25 @@ class Verdict:
         The verdict in a sentence or two, with the numbers behind it.
     removed : float or None
         Part of the baseline's gap the chosen model removes.
+    named : list of str
+        The models the data cannot tell apart, the chosen one among them (fewest effects
+        first; :func:`gdfe.diagnosis.separate.indistinguishable`); empty or one for a clear
+        choice.
     """
 
     verdict: str
     text: str
     removed: float | None
+    named: list = dataclasses.field(default_factory=list)
+
+    @property
+    def ambiguous(self) -> bool:
+        """Whether the data cannot tell the chosen model from others (:attr:`named`)."""
+        return len(self.named) > 1
 
     def as_dict(self):
-        return {"verdict": self.verdict, "text": self.text, "removed": self.removed}
+        return {"verdict": self.verdict, "text": self.text, "removed": self.removed, "named": list(self.named),
+                "ambiguous": self.ambiguous}
 
 
 def _lof_words(lof, noise):
@@ -241,8 +256,12 @@ def _lof_words(lof, noise):
 
 
 def decide(*, best_name, best_is_baseline, lof_base, lof_best, structure_base, structure_best, gap_base,
-           gap_best, noise):
+           gap_best, noise, named=None, separation=None):
     """The verdict from the lack-of-fit tests, the structure left and the gap removed.
+
+    When the data cannot tell the chosen model from others (``named`` holds more than one
+    model) and the verdict names a model (``explained``, ``partly_explained``), the text says
+    so, names them all and, given ``separation``, which test would tell them apart.
 
     Parameters
     ----------
@@ -256,11 +275,35 @@ def decide(*, best_name, best_is_baseline, lof_base, lof_best, structure_base, s
     gap_base, gap_best : float
         :func:`gap` of the two.
     noise : Noise
+    named : list of str, optional
+        :attr:`Verdict.named`.
+    separation : str, optional
+        The sentence of :func:`gdfe.diagnosis.separate.separating_test`.
 
     Returns
     -------
     Verdict
     """
+    v = _decide(best_name=best_name, best_is_baseline=best_is_baseline, lof_base=lof_base, lof_best=lof_best,
+                structure_base=structure_base, structure_best=structure_best, gap_base=gap_base,
+                gap_best=gap_best, noise=noise)
+    v.named = list(named) if named else [best_name]
+    if v.ambiguous and v.verdict in ("explained", "partly_explained"):
+        others = [m for m in v.named if m != best_name]
+        v.text = v.text.rstrip(".") + (f". The data cannot tell {best_name} from {', '.join(others)}"
+                   + (" (each within the noise; their held-out errors within one standard error of each other, "
+                      "or their fitted angles closer than the noise can tell)" if noise.known and lof_best["within"]
+                      else " (their held-out errors within one standard error of each other"
+                      + (", or their fitted angles closer than the noise can tell)" if noise.known else ")"))
+                   + f": indistinguishable, fewest effects first: {', '.join(v.named)}"
+                   + (f"; {separation}" if separation else ""))
+        if not v.text.endswith("."):
+            v.text += "."
+    return v
+
+
+def _decide(*, best_name, best_is_baseline, lof_base, lof_best, structure_base, structure_best, gap_base,
+            gap_best, noise):
     if gap_base is None or gap_best is None:
         raise GdfeError("gap: expected the gaps of the baseline and of the chosen model")
     removed = None
