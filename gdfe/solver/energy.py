@@ -196,16 +196,6 @@ class RestState:
         lam0, W0 = np.linalg.eigh(M0)
         return np.einsum("mij,mj,mkj->mik", W0, 1.0 / np.sqrt(np.maximum(lam0, 1e-300)), W0)
 
-    @functools.cached_property
-    def Kx(self):
-        """The cross-product matrices ``[p_k]x`` of the rest-shape vertices, ``(m, 8, 3, 3)``."""
-        P = self.P
-        Kx = np.zeros(P.shape + (3,))
-        Kx[..., 0, 1], Kx[..., 0, 2] = -P[..., 2], P[..., 1]
-        Kx[..., 1, 0], Kx[..., 1, 2] = P[..., 2], -P[..., 0]
-        Kx[..., 2, 0], Kx[..., 2, 1] = -P[..., 1], P[..., 0]
-        return Kx
-
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Orientation:

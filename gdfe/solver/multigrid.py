@@ -46,10 +46,21 @@ MG_SMOOTHING = 2
 MG_ASPECT = 2
 
 
+#: Lattice offsets of a hexahedron's eight vertices, VTK order.
+_HEX_OFFSETS = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]])
+
+
 def lattice(mesh):
-    """Lattice indices ``(i, j, k)`` of every vertex of a structured mesh, ``(n, 3)`` int array."""
-    X = mesh.points
-    return np.rint((X - X.min(axis=0)) / np.asarray(mesh.spacing)).astype(np.int64)
+    """Lattice indices ``(i, j, k)`` of every vertex of a structured mesh, ``(n, 3)`` int array.
+
+    From the cells' grid indices (``cell_ij``, ``cell_k``) and the VTK order of their
+    vertices, so they do not depend on where the film lies (a design turned in the plane
+    has the same lattice).
+    """
+    base = np.column_stack([mesh.cell_ij, mesh.cell_k]).astype(np.int64)
+    ijk = np.zeros((mesh.n_points, 3), np.int64)
+    ijk[mesh.cells.ravel()] = (base[:, None, :] + _HEX_OFFSETS).reshape(-1, 3)
+    return ijk - ijk.min(axis=0)
 
 
 def _axis_weights(x, across):

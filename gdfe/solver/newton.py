@@ -1,7 +1,7 @@
 """Damped Newton on the rotation-reduced energy: ``method="newton"`` and ``method="newton-cg"``.
 
 With every rotation optimal, Eq. 5 is a function of the vertices alone. This module holds
-its Hessian (:class:`ReducedHessian`: the per-step blocks, and the mesh-only constants
+its Hessian (:class:`ReducedHessian`: the per-step :class:`Linearisation` and ``J``, and the mesh-only constants
 ``L (x) I3``, the sparsity of the Jacobian ``J`` and the coarse space of the CG
 preconditioner), the damped-Newton outer loop (:func:`solve_newton`) and the two ways to
 compute its steps: the 3n x 3n Hessian factorised (:func:`factorised_directions`) or
@@ -21,9 +21,10 @@ import scipy.sparse as sp
 from gdfe._validation import GdfeError
 from gdfe.solver.energy import SolveStats
 from gdfe.solver.linalg import factorise
+from gdfe.solver.multigrid import lattice
 
 __all__ = ["MU_MIN", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "CONTACT_ALPHAS", "CONTACT_EXACT_RES", "DRIFT_WINDOW",
-           "DRIFT_ENERGY", "DRIFT_SHRINK", "ON_DRIFT", "ReducedHessian", "CoarseSpace", "pcg", "deformation",
+           "DRIFT_ENERGY", "DRIFT_SHRINK", "ON_DRIFT", "ReducedHessian", "Linearisation", "CoarseSpace", "pcg", "deformation",
            "solve_newton", "factorised_directions", "cg_directions"]
 
 log = logging.getLogger(__name__)
@@ -56,17 +57,67 @@ DRIFT_SHRINK = 0.1
 ON_DRIFT = ("warn", "stop")
 
 
+def _cross(p):
+    """The cross-product matrices ``[p]x`` of the vectors ``p`` ``(..., 3)``: ``(..., 3, 3)``."""
+    K = np.zeros(p.shape + (3,))
+    K[..., 0, 1], K[..., 0, 2] = -p[..., 2], p[..., 1]
+    K[..., 1, 0], K[..., 1, 2] = p[..., 2], -p[..., 0]
+    K[..., 2, 0], K[..., 2, 1] = -p[..., 1], p[..., 0]
+    return K
+
+
+#: Cells per chunk when a 3m x 3n matrix is built from per-cell blocks (bounds the temporaries).
+_CHUNK = 65_536
+
+
+def _block_rows(lin, p, pattern):
+    """The sparse matrix with rows ``root_i^T sum_k [p_ik]x Q_i^T (.)_{cols[i, k]}`` (CSR, 3m x 3 n_cols).
+
+    With ``p`` the rest shapes and the cells as columns this is ``J``; with the rest shapes
+    carried to the corners of a coarse grid, ``J Z``. Entry ``(a, k, b)`` of cell ``i`` is
+    ``p_k . (q_b x r_a)``, ``q_b`` the rows of ``Q_i`` and ``r_a`` the columns of ``root_i``.
+
+    Parameters
+    ----------
+    lin : Linearisation
+    p : (m, r, 3) float array [mm]
+    pattern : (indices, indptr, shape)
+        The CSR structure (:func:`_row_pattern`).
+    """
+    m, r, _ = p.shape
+    data = np.empty((m, 3, r, 3))
+    for s in range(0, m, _CHUNK):
+        e = min(m, s + _CHUNK)
+        c = np.cross(lin.Q[s:e, None, :, :], lin.root[s:e].transpose(0, 2, 1)[:, :, None, :])  # [i, a, b, d]
+        np.matmul(p[s:e, None], c.transpose(0, 1, 3, 2), out=data[s:e])
+    indices, indptr, shape = pattern
+    return sp.csr_matrix((data.ravel(), indices, indptr), shape=shape)
+
+
+def _row_pattern(cols, n_cols):
+    """The CSR structure of :func:`_block_rows` for the columns ``cols`` ``(m, r)`` of every cell."""
+    m, r = cols.shape
+    indices = np.broadcast_to((3 * cols[:, None, :, None] + np.arange(3)).astype(np.int32), (m, 3, r, 3)).ravel()
+    return indices, np.arange(0, 9 * r * m + 1, 3 * r), (3 * m, 3 * n_cols)
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
-class _Pattern:
-    """The CSR structure of a sparse matrix whose values are a permutation of a flat array."""
+class Linearisation:
+    """The rotation-reduced energy's Hessian at one iterate, per cell (:meth:`ReducedHessian.linearise`).
 
-    order: np.ndarray  # value k of the matrix is entry order[k] of the flat array
-    indices: np.ndarray
-    indptr: np.ndarray
-    shape: tuple
+    The Hessian is ``2 (L (x) I3 - J^T J)``; row block ``i`` of ``J`` maps the vertices
+    ``v`` to ``root_i^T sum_k p_k x (Q_i^T v_k)`` over the cell's vertices.
 
-    def fill(self, values):
-        return sp.csr_matrix((values[self.order], self.indices, self.indptr), shape=self.shape)
+    Attributes
+    ----------
+    Q : (m, 3, 3) float array
+        The rotations.
+    root : (m, 3, 3) float array [mm^(1/2)]
+        ``(w N)^(1/2)``, see :meth:`ReducedHessian.linearise`.
+    """
+
+    Q: np.ndarray
+    root: np.ndarray
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -84,12 +135,22 @@ class CoarseSpace:
         ``(Z_f^T L_ff Z_f) (x) I3``, the coarse n x n system for the three coordinates.
     Zt : (k, n) sparse matrix
         ``Z^T`` (CSR), made once: the restriction of every coarse correction.
+    corners : (m, 8) int array
+        The columns of ``Z`` at the corners of the coarse cell each cell lies in
+        (``(a, b, l)`` in x, y and layer, ``4 a + 2 b + l``).
+    spacing : int
+        The coarse grid's spacing, in cells.
+    ijk : (n, 3) int array
+        Lattice indices of the vertices (:func:`gdfe.solver.multigrid.lattice`).
     """
 
     Z: sp.csr_matrix
     Z3: sp.csr_matrix
     Lc3: sp.csc_matrix
-    Zt: sp.csr_matrix = None
+    Zt: sp.csr_matrix
+    corners: np.ndarray
+    spacing: int
+    ijk: np.ndarray
 
 
 class ReducedHessian:
@@ -102,7 +163,9 @@ class ReducedHessian:
     24 vertex coordinates is ``2 w (D (x) I3 - G^T M^{-1} G)`` with ``G_k = [p_k]x Q^T``.
     Since ``G G^T = M0 = tr(C) I - C``, ``C = P^T P``, it is positive semi-definite exactly
     when the eigenvalues of ``M0^{-1/2} M M0^{-1/2}`` are >= 1. Summed over cells, the
-    Hessian is ``2 (L (x) I3 - J^T J)`` with ``J`` (3m x 3n) made of :meth:`blocks`.
+    Hessian is ``2 (L (x) I3 - J^T J)``; ``J`` (3m x 3n, :meth:`jacobian`) is made per
+    step from a :class:`Linearisation` straight into its CSR arrays (its column indices made
+    once), and ``J^T`` is its transpose's view: one copy of the blocks, none of ``J^T J``.
 
     Parameters
     ----------
@@ -118,29 +181,13 @@ class ReducedHessian:
 
     def __init__(self, steps):
         self.steps = steps
+        self._coarse_rest = None
 
     # -- mesh-only constants, made on first use -------------------------------------------
     @functools.cached_property
     def L3(self):
         """``L (x) I3`` (3n x 3n, CSR), unknowns ordered vertex-major (``3 v + c``)."""
         return sp.kron(self.steps.L, sp.eye(3), format="csr")
-
-    @functools.cached_property
-    def _patterns(self):
-        """The sparsity of ``J`` and of ``J^T``: it depends on the mesh only."""
-        cells, n = self.steps.cells, self.steps.n
-        m = cells.shape[0]
-        rows = np.broadcast_to((3 * np.arange(m))[:, None, None, None] + np.arange(3)[None, None, :, None],
-                               (m, 8, 3, 3))
-        cols = np.broadcast_to(3 * cells[:, :, None, None] + np.arange(3)[None, None, None, :],
-                               (m, 8, 3, 3))
-        shape = (3 * m, 3 * n)
-        # the data of J0 and Jt0 are 1 + the flat index into the blocks
-        order = np.lexsort((cols.ravel(), rows.ravel()))
-        J0 = sp.csr_matrix((order + 1.0, cols.ravel()[order], np.arange(0, 72 * m + 1, 24)), shape=shape)
-        Jt0 = J0.T.tocsr()
-        return (_Pattern(order, J0.indices, J0.indptr, shape),
-                _Pattern(Jt0.data.astype(np.int64) - 1, Jt0.indices, Jt0.indptr, shape[::-1]))
 
     @functools.cached_property
     def coarse(self) -> CoarseSpace:
@@ -151,13 +198,10 @@ class ReducedHessian:
         """
         steps = self.steps
         design = steps.design
-        mesh = design.mesh
-        X = mesh.points
-        dx, dy, dz = mesh.spacing
+        dx, dy, _ = design.mesh.spacing
         c = max(2, int(np.ceil(self.coarse_spacing * design.h / min(dx, dy))))
-        i = np.rint((X[:, 0] - X[:, 0].min()) / dx).astype(int)
-        j = np.rint((X[:, 1] - X[:, 1].min()) / dy).astype(int)
-        k = np.rint((X[:, 2] - X[:, 2].min()) / dz).astype(int)
+        ijk = lattice(design.mesh)
+        i, j, k = ijk.T
         I0, ti = np.divmod(i, c)
         J0, tj = np.divmod(j, c)
         ti, tj = ti / c, tj / c
@@ -170,14 +214,47 @@ class ReducedHessian:
         Z.eliminate_zeros()
         used = np.nonzero(np.bincount(Z.indices, minlength=Z.shape[1]))[0]
         Z = Z[:, used].tocsr()
+        # every cell lies in one coarse cell: the columns of that cell's eight corners
+        cells = steps.cells
+        cI, cJ, cK = i[cells].min(axis=1) // c, j[cells].min(axis=1) // c, k[cells].min(axis=1)
+        keys = np.stack([((cI + a) * nJ + (cJ + b)) * nK + cK + l for a in (0, 1) for b in (0, 1) for l in (0, 1)],
+                        axis=1)
+        column = np.zeros(max(int(cols.max()), int(keys.max())) + 1, np.int64)
+        column[used] = np.arange(used.size)  # a corner no vertex of the cell weighs on gets 0, weight 0
         Zf = Z[steps.free]
         Lc3 = sp.kron(Zf.T @ steps.L_ff @ Zf, sp.eye(3), format="csc")
         Z3 = sp.kron(Z, sp.eye(3), format="csr")
-        return CoarseSpace(Z=Z, Z3=Z3, Lc3=Lc3, Zt=Z.T.tocsr())
+        return CoarseSpace(Z=Z, Z3=Z3, Lc3=Lc3, Zt=Z.T.tocsr(), corners=column[keys].astype(np.int32), spacing=c,
+                           ijk=ijk.astype(np.int32))
+
+    def _corner_weights(self, s, e):
+        """``W[i, k, q]``, cells ``s:e``: the weight of cell ``i``'s corner ``q`` (:attr:`CoarseSpace.corners`) at its vertex ``k``."""
+        cs = self.coarse
+        cells = self.steps.cells[s:e]
+        i, j, k = (cs.ijk[cells, a].astype(np.int64) for a in range(3))  # (c, 8) each
+        c = cs.spacing
+        ti = (i - (i.min(axis=1) // c * c)[:, None]) / c
+        tj = (j - (j.min(axis=1) // c * c)[:, None]) / c
+        up = k - k.min(axis=1)[:, None]
+        live = cells != self.steps.pin  # the pinned vertex's row of Z is zero
+        return np.stack([(ti if a else 1 - ti) * (tj if b else 1 - tj) * (up == l) * live
+                         for a in (0, 1) for b in (0, 1) for l in (0, 1)], axis=2)
+
+    def coarse_rest(self, rest):
+        """The rest shapes carried to the coarse corners of every cell, ``W_i^T P_i``: ``(m, 8, 3)`` [mm]."""
+        cached = self._coarse_rest
+        if cached is None or cached[0] is not rest:
+            P = rest.P
+            out = np.empty_like(P)
+            for s in range(0, P.shape[0], _CHUNK):
+                e = min(P.shape[0], s + _CHUNK)
+                out[s:e] = np.matmul(self._corner_weights(s, e).transpose(0, 2, 1), P[s:e])
+            cached = self._coarse_rest = (rest, out)
+        return cached[1]
 
     # -- per step ------------------------------------------------------------------------
-    def blocks(self, Q, S, rest, floor=1.0):
-        """``root^T G_k`` of every cell, ``(m, 8, 3, 3)``: the blocks of ``J``.
+    def linearise(self, Q, S, rest, floor=1.0) -> Linearisation:
+        """The :class:`Linearisation` at rotations ``Q`` and cross-covariances ``S``.
 
         Parameters
         ----------
@@ -191,22 +268,25 @@ class ReducedHessian:
             contribute negative curvature, which the sum over cells usually absorbs.
         """
         M0is = rest.M0is
-        Y = np.einsum("mji,mjk->mik", Q, S)
+        Y = np.matmul(Q.transpose(0, 2, 1), S)
         Y = 0.5 * (Y + Y.transpose(0, 2, 1))
         M = np.trace(Y, axis1=1, axis2=2)[:, None, None] * np.eye(3) - Y
-        B = M0is @ M @ M0is
-        lam, W = np.linalg.eigh(B)
+        lam, W = np.linalg.eigh(M0is @ M @ M0is)
         lam = np.maximum(lam, floor)
-        # (w N)^(1/2) with N = M0^{-1/2} W diag(1/lam) W^T M0^{-1/2}
-        root = np.einsum("mij,mjk,mk->mik", M0is, W, np.sqrt(self.steps.w[:, None] / lam))
-        G = np.matmul(rest.Kx, Q.transpose(0, 2, 1)[:, None])  # G_k = [p_k]x Q^T, (m, 8, 3, 3)
-        return np.matmul(root.transpose(0, 2, 1)[:, None], G)  # root^T G_k
+        # root = (w N)^(1/2) = M0^{-1/2} W diag((w/lam)^(1/2)) with N = M0^{-1/2} W diag(1/lam) W^T M0^{-1/2}
+        return Linearisation(Q=Q, root=(M0is @ W) * np.sqrt(self.steps.w[:, None] / lam)[:, None, :])
 
-    def jacobian(self, RG):
-        """``J`` (3m x 3n, rows ``3 i + a``) and ``J^T``, both CSR, from the blocks ``RG``."""
-        values = RG.ravel()
-        pattern, pattern_t = self._patterns
-        return pattern.fill(values), pattern_t.fill(values)
+    @functools.cached_property
+    def _j_pattern(self):
+        return _row_pattern(self.steps.cells, self.steps.n)
+
+    @functools.cached_property
+    def _jz_pattern(self):
+        return _row_pattern(self.coarse.corners, self.coarse.Z.shape[1])
+
+    def jacobian(self, lin, rest):
+        """``J`` (3m x 3n, CSR, rows ``3 i + a``) at ``lin``."""
+        return _block_rows(lin, rest.P, self._j_pattern)
 
     def matrix(self, Q, S, rest, mu=0.0):
         """Positive semi-definite Hessian (3n x 3n, sparse), plus ``mu`` times ``2 L``.
@@ -214,12 +294,20 @@ class ReducedHessian:
         The per-cell eigenvalues are clamped to >= 1, which keeps every Newton step a
         descent direction. Unknowns ordered vertex-major (``3 v + c``).
         """
-        RG = self.blocks(Q, S, rest, floor=1.0)
-        J, _ = self.jacobian(RG)
+        J = self.jacobian(self.linearise(Q, S, rest, floor=1.0), rest)
         return (2.0 * (1.0 + mu)) * self.L3 - 2.0 * (J.T @ J)
 
-    def operator(self, RG, mu, extra=None):
-        """Hessian product and preconditioner for the blocks ``RG`` and damping ``mu``.
+    def coarse_matrix(self, lin, rest, mu, extra=None):
+        """``Z3^T H Z3``: the Hessian with damping ``max(mu, MU_MIN)`` on the coarse grid (3k x 3k, CSC)."""
+        cs = self.coarse
+        JZ = _block_rows(lin, self.coarse_rest(rest), self._jz_pattern)
+        Hc = (2.0 * (1.0 + max(mu, MU_MIN))) * cs.Lc3 - 2.0 * (JZ.T @ JZ)
+        if extra is not None:
+            Hc = Hc + cs.Z3.T @ extra @ cs.Z3
+        return sp.csc_matrix(Hc)
+
+    def operator(self, lin, rest, mu, extra=None):
+        """Hessian product and preconditioner at ``lin`` with damping ``mu``.
 
         The preconditioner combines the exact inverse of the (scaled) n x n system for
         the three coordinates with a Galerkin coarse correction ``Z (Z^T H Z)^{-1} Z^T``:
@@ -239,13 +327,10 @@ class ReducedHessian:
         steps = self.steps
         cs = self.coarse
         Z, Zt = cs.Z, cs.Zt
-        J, Jt = self.jacobian(RG)
-        JZ = (J @ cs.Z3).tocsc()
-        Hc = (2.0 * (1.0 + max(mu, MU_MIN))) * cs.Lc3 - 2.0 * (JZ.T @ JZ)
-        if extra is not None:
-            Hc = (Hc + cs.Z3.T @ extra @ cs.Z3).tocsc()
+        J = self.jacobian(lin, rest)
+        Jt = J.T
         try:
-            fc = factorise(Hc)
+            fc = factorise(self.coarse_matrix(lin, rest, mu, extra))
         except RuntimeError:  # SuperLU: exactly singular
             return None
         pin, free, L, fine_solve = steps.pin, steps.free, steps.L, steps.approx_solve_free
@@ -349,11 +434,11 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200):
     Returns ``directions(Q, S, grad, res, extra=None)``, see :func:`solve_newton`.
     """
     def directions(Q, S, grad, res, extra=None):
-        RG = hessian.blocks(Q, S, rest, floor=floor)
+        lin = hessian.linearise(Q, S, rest, floor=floor)
         rtol = cg_rtol if cg_rtol is not None else min(CG_RTOL_MAX, max(CG_RTOL_MIN, np.sqrt(res)))
 
         def step(mu):
-            ops = hessian.operator(RG, mu, extra)
+            ops = hessian.operator(lin, rest, mu, extra)
             if ops is None:
                 return None, 0
             x, k = pcg(*ops, -grad, rtol, cg_max)
