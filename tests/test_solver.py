@@ -223,13 +223,18 @@ def test_a_given_start_reaches_the_same_shape():
     assert again.iterations < ref.iterations
 
 
-@pytest.mark.parametrize("turn", [0.0, 0.4])
-def test_newton_cg_products_and_coarse_matrix_match_the_assembled_hessian(turn):
+@pytest.mark.parametrize("turn, slab", [(0.0, None), (0.4, 100)])
+def test_newton_cg_products_and_coarse_matrix_match_the_assembled_hessian(turn, slab, monkeypatch):
     """The CG Hessian product is the assembled matrix's, and the coarse matrix is exactly Z3^T H Z3.
 
     A disc of film (holes in the lattice, the pinned vertex inside) on two layers of cells,
-    turned in the plane by ``turn`` rad: the coarse grid follows the cells, not the axes.
+    turned in the plane by ``turn`` rad: the coarse grid follows the cells, not the axes;
+    the coarse matrix summed over slabs of ``slab`` cells.
     """
+    if slab:
+        import gdfe.solver.newton as newton
+
+        monkeypatch.setattr(newton, "_COARSE_CHUNK", slab)
     n = 24
     x = (np.arange(n) + 0.5) / n - 0.5
     film = np.hypot(*np.meshgrid(x, x, indexing="ij")) <= 0.5

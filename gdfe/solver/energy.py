@@ -66,14 +66,18 @@ def rest_shapes(design, activation=1.0):
 
 
 def system_matrix(design):
-    """The assembled ``A^T A = sum_i w_i S_i^T D S_i`` (n x n, symmetric, rows sum to 0) [mm^3]."""
+    """The assembled ``A^T A = sum_i w_i S_i^T D S_i`` (n x n CSR, symmetric, rows sum to 0) [mm^3].
+
+    With ``D = I - 1/8``, it is ``diag(C w) - C diag(w) C^T / 8`` for the vertex-cell incidence
+    ``C`` (n x m, eight ones a column): no 64 entries per cell are listed on the way.
+    """
     cells = design.mesh.cells
     w = design.mesh.cell_volumes()
-    rows = np.repeat(cells, 8, axis=1).ravel()
-    cols = np.tile(cells, (1, 8)).ravel()
-    data = (w[:, None, None] * D8[None]).ravel()
-    n = design.mesh.n_points
-    return sp.csr_matrix((data, (rows, cols)), shape=(n, n))
+    n, m = design.mesh.n_points, cells.shape[0]
+    C = sp.csr_matrix((np.ones(8 * m), cells.ravel().astype(np.int32), np.arange(0, 8 * m + 1, 8, dtype=np.int32)),
+                      shape=(m, n)).T.tocsr()  # (n, m)
+    CW = C @ sp.diags(w)
+    return (sp.diags(np.asarray(CW.sum(axis=1)).ravel()) - (CW @ C.T) / 8.0).tocsr()
 
 
 def _det3(A):
@@ -328,8 +332,10 @@ class LocalGlobal:
         rigid = np.nonzero(design.material == Material.RIGID)[0]
         self.pin = int(self.cells[rigid[0] if rigid.size else 0, 0])
         self.free = np.delete(np.arange(self.n), self.pin)
-        self.L_ff = self.L[self.free][:, self.free].tocsc()
-        self.L_fp = self.L[self.free][:, [self.pin]]
+        rows = self.L[self.free]
+        self.L_ff = rows[:, self.free].tocsr()  # symmetric: its CSR arrays are also its CSC arrays
+        self.L_fp = rows[:, [self.pin]]
+        del rows
         self.B = sp.csr_matrix((np.repeat(self.w, 8), (self.cells.ravel(), np.arange(8 * m))),
                                shape=(self.n, 8 * m))
         self.uses_multigrid = m > MULTIGRID_CELLS

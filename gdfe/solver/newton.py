@@ -24,7 +24,7 @@ from gdfe.solver.linalg import factorise
 from gdfe.solver.multigrid import lattice
 
 __all__ = ["MU_MIN", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "CONTACT_ALPHAS", "CONTACT_EXACT_RES", "DRIFT_WINDOW",
-           "DRIFT_ENERGY", "DRIFT_SHRINK", "ON_DRIFT", "ReducedHessian", "Linearisation", "CoarseSpace", "pcg", "deformation",
+           "DRIFT_ENERGY", "DRIFT_SHRINK", "ON_DRIFT", "CG_RTOL_MIN", "CG_RTOL_MAX", "CG_TARGET_MARGIN", "COARSE_REUSE", "ReducedHessian", "Linearisation", "CoarseSpace", "pcg", "deformation",
            "solve_newton", "factorised_directions", "cg_directions"]
 
 log = logging.getLogger(__name__)
@@ -47,6 +47,14 @@ CONTACT_EXACT_RES = 1e-2
 #: residual, clipped to [CG_RTOL_MIN, CG_RTOL_MAX] (relative, preconditioned).
 CG_RTOL_MIN = 1e-3
 CG_RTOL_MAX = 0.1
+#: ... and never tighter than this fraction of the reduction the stopping test still asks of the
+#: estimated distance to the solution (``STEP_TOL_FACTOR * tol / estimate``): the last step need
+#: only get below the tolerance, not to round-off.
+CG_TARGET_MARGIN = 0.25
+#: The coarse matrix of ``method="newton-cg"`` is made and factorised again only when the last
+#: step moved the shape by more than this (the estimated distance to the solution, units of h)
+#: or the damping changed; otherwise the last one preconditions the step.
+COARSE_REUSE = 0.1
 #: Drift (see :func:`solve_newton`): over this many iterations ...
 DRIFT_WINDOW = 10
 #: ... the energy fell by less than this fraction of itself (its 5th digit over ten iterations, the 6th in each) ...
@@ -68,6 +76,8 @@ def _cross(p):
 
 #: Cells per chunk when a 3m x 3n matrix is built from per-cell blocks (bounds the temporaries).
 _CHUNK = 65_536
+#: Cells per slab of ``J Z`` when the coarse matrix is summed (bounds its memory at 10^6 cells).
+_COARSE_CHUNK = 262_144
 
 
 def _block_rows(lin, p, pattern):
@@ -120,7 +130,7 @@ class Linearisation:
     root: np.ndarray
 
 
-@dataclasses.dataclass(frozen=True, eq=False)
+@dataclasses.dataclass(eq=False)
 class CoarseSpace:
     """The coarse grid of the ``"newton-cg"`` preconditioner.
 
@@ -130,7 +140,7 @@ class CoarseSpace:
         Bilinear interpolation from the coarse grid, per layer of vertices; the pinned
         vertex's row is zero.
     Z3 : (3n, 3k) sparse matrix
-        ``Z (x) I3``.
+        ``Z (x) I3`` (made when asked for: only the contact barrier's Hessian needs it).
     Lc3 : (3k, 3k) sparse matrix
         ``(Z_f^T L_ff Z_f) (x) I3``, the coarse n x n system for the three coordinates.
     Zt : (k, n) sparse matrix
@@ -145,12 +155,15 @@ class CoarseSpace:
     """
 
     Z: sp.csr_matrix
-    Z3: sp.csr_matrix
     Lc3: sp.csc_matrix
     Zt: sp.csr_matrix
     corners: np.ndarray
     spacing: int
     ijk: np.ndarray
+
+    @functools.cached_property
+    def Z3(self):
+        return sp.kron(self.Z, sp.eye(3), format="csr")
 
 
 class ReducedHessian:
@@ -223,8 +236,7 @@ class ReducedHessian:
         column[used] = np.arange(used.size)  # a corner no vertex of the cell weighs on gets 0, weight 0
         Zf = Z[steps.free]
         Lc3 = sp.kron(Zf.T @ steps.L_ff @ Zf, sp.eye(3), format="csc")
-        Z3 = sp.kron(Z, sp.eye(3), format="csr")
-        return CoarseSpace(Z=Z, Z3=Z3, Lc3=Lc3, Zt=Z.T.tocsr(), corners=column[keys].astype(np.int32), spacing=c,
+        return CoarseSpace(Z=Z, Lc3=Lc3, Zt=Z.T.tocsr(), corners=column[keys].astype(np.int32), spacing=c,
                            ijk=ijk.astype(np.int32))
 
     def _corner_weights(self, s, e):
@@ -300,13 +312,27 @@ class ReducedHessian:
     def coarse_matrix(self, lin, rest, mu, extra=None):
         """``Z3^T H Z3``: the Hessian with damping ``max(mu, MU_MIN)`` on the coarse grid (3k x 3k, CSC)."""
         cs = self.coarse
-        JZ = _block_rows(lin, self.coarse_rest(rest), self._jz_pattern)
-        Hc = (2.0 * (1.0 + max(mu, MU_MIN))) * cs.Lc3 - 2.0 * (JZ.T @ JZ)
+        Hc = (2.0 * (1.0 + max(mu, MU_MIN))) * cs.Lc3
+        pc, (indices, indptr, shape) = self.coarse_rest(rest), self._jz_pattern
+        m = pc.shape[0]
+        for s in range(0, m, _COARSE_CHUNK):  # J Z a slab of cells at a time: its memory stays bounded
+            e = min(m, s + _COARSE_CHUNK)
+            part = Linearisation(Q=lin.Q[s:e], root=lin.root[s:e])
+            ptr = indptr[3 * s:3 * e + 1]
+            JZ = _block_rows(part, pc[s:e], (indices[ptr[0]:ptr[-1]], ptr - ptr[0], (3 * (e - s), shape[1])))
+            Hc = Hc - 2.0 * (JZ.T @ JZ)
         if extra is not None:
             Hc = Hc + cs.Z3.T @ extra @ cs.Z3
         return sp.csc_matrix(Hc)
 
-    def operator(self, lin, rest, mu, extra=None):
+    def coarse_factor(self, lin, rest, mu, extra=None):
+        """:meth:`coarse_matrix` factorised; None when it is singular."""
+        try:
+            return factorise(self.coarse_matrix(lin, rest, mu, extra))
+        except RuntimeError:  # SuperLU: exactly singular
+            return None
+
+    def operator(self, lin, rest, mu, extra=None, coarse_factor=None):
         """Hessian product and preconditioner at ``lin`` with damping ``mu``.
 
         The preconditioner combines the exact inverse of the (scaled) n x n system for
@@ -316,7 +342,8 @@ class ReducedHessian:
         or summed (``"additive"``).
 
         ``extra`` (3n x 3n, vertex-major, positive semi-definite; the contact barrier's
-        Hessian) is added to the Hessian and to the coarse matrix.
+        Hessian) is added to the Hessian and to the coarse matrix. ``coarse_factor``, one
+        made earlier (:meth:`coarse_factor`), is used instead of making one.
 
         Returns
         -------
@@ -327,12 +354,11 @@ class ReducedHessian:
         steps = self.steps
         cs = self.coarse
         Z, Zt = cs.Z, cs.Zt
+        fc = self.coarse_factor(lin, rest, mu, extra) if coarse_factor is None else coarse_factor
+        if fc is None:
+            return None
         J = self.jacobian(lin, rest)
         Jt = J.T
-        try:
-            fc = factorise(self.coarse_matrix(lin, rest, mu, extra))
-        except RuntimeError:  # SuperLU: exactly singular
-            return None
         pin, free, L, fine_solve = steps.pin, steps.free, steps.L, steps.approx_solve_free
         scale = 2.0 * (1.0 + mu)
         two_level = self.two_level
@@ -398,13 +424,13 @@ def pcg(apply_H, apply_P, rhs, rtol, max_iter):
 def factorised_directions(hessian, rest):
     """Newton steps of ``method="newton"``: the 3n x 3n Hessian factorised, per damping ``mu``.
 
-    Returns ``directions(Q, S, grad, res, extra=None)``, see :func:`solve_newton`.
+    Returns ``directions(Q, S, grad, res, extra=None, error=inf, target=0)``, see :func:`solve_newton`.
     """
     steps = hessian.steps
     fdof = (3 * steps.free[:, None] + np.arange(3)).ravel()
     n = steps.n
 
-    def directions(Q, S, grad, res, extra=None):
+    def directions(Q, S, grad, res, extra=None, error=np.inf, target=0.0):
         def step(mu):
             H = hessian.matrix(Q, S, rest, mu=mu)
             if extra is not None:
@@ -427,20 +453,34 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200):
     ``floor`` (nearer the true Hessian, hence fewer Newton steps; CG stops at negative
     curvature and the energy test rejects a bad step). Each CG iteration costs one solve
     with the factorised n x n system for three right-hand sides, Hessian products and
-    solves with the coarse matrix, which is factorised once per step. CG stops at a
-    relative (preconditioned) residual ``cg_rtol``, by default the square root of the
-    plain step's residual clipped to [1e-3, 0.1]: loose far from the solution, tight near it.
+    solves with the coarse matrix, which is factorised once per step (kept for the next
+    step while the shape moves by less than :data:`COARSE_REUSE`). CG stops at a relative
+    (preconditioned) residual ``cg_rtol``, by default the square root of the plain step's
+    residual clipped to [:data:`CG_RTOL_MIN`, :data:`CG_RTOL_MAX`] - loose far from the
+    solution, tight near it - and no tighter than :data:`CG_TARGET_MARGIN` times the
+    reduction the stopping test still asks for.
 
-    Returns ``directions(Q, S, grad, res, extra=None)``, see :func:`solve_newton`.
+    Returns ``directions(Q, S, grad, res, extra=None, error=inf, target=0)``, see :func:`solve_newton`.
     """
-    def directions(Q, S, grad, res, extra=None):
+    kept = {}  # the last coarse factor and the damping it was made with
+
+    def directions(Q, S, grad, res, extra=None, error=np.inf, target=0.0):
         lin = hessian.linearise(Q, S, rest, floor=floor)
         rtol = cg_rtol if cg_rtol is not None else min(CG_RTOL_MAX, max(CG_RTOL_MIN, np.sqrt(res)))
+        if cg_rtol is None and target > 0.0 and np.isfinite(error):
+            rtol = min(CG_RTOL_MAX, max(rtol, CG_TARGET_MARGIN * target / error))
+        reuse = extra is None and error <= COARSE_REUSE
 
         def step(mu):
-            ops = hessian.operator(lin, rest, mu, extra)
-            if ops is None:
-                return None, 0
+            fc = kept["factor"] if reuse and kept.get("mu") == mu else None
+            if fc is None:
+                fc = hessian.coarse_factor(lin, rest, mu, extra)
+                if fc is None:
+                    return None, 0
+                kept.clear()
+                if extra is None:
+                    kept.update(factor=fc, mu=mu)
+            ops = hessian.operator(lin, rest, mu, extra, coarse_factor=fc)
             x, k = pcg(*ops, -grad, rtol, cg_max)
             log.debug("CG: %d iterations to %.1e", k, rtol)
             return x, k
@@ -488,10 +528,12 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
     max_iter : int
         Limit on the assembly steps.
     directions : callable
-        ``directions(Q, S, grad, res, extra=None)`` returns a function of the damping
-        ``mu`` giving ``(step, cg_iterations)``: the Newton step as an ``(n, 3)`` array
-        (None when it cannot be computed) and the CG iterations it took; ``extra`` is a
-        positive semi-definite 3n x 3n matrix added to the Hessian (the contact barrier's).
+        ``directions(Q, S, grad, res, extra=None, error=inf, target=0)`` returns a function of
+        the damping ``mu`` giving ``(step, cg_iterations)``: the Newton step as an ``(n, 3)``
+        array (None when it cannot be computed) and the CG iterations it took; ``extra`` is
+        a positive semi-definite 3n x 3n matrix added to the Hessian (the contact barrier's),
+        ``error`` the estimated distance to the solution and ``target`` the distance the
+        stopping test asks for (units of h).
     alphas : tuple of float
         Step lengths tried, in order; the first that lowers the energy is taken and
         ``mu`` shrinks (a full step) or doubles (a shortened one); when none does, ``mu``
@@ -583,11 +625,12 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
         grad = 2.0 * (steps.L @ V - plain.b)
         if contact is None:
             grad[steps.pin] = 0.0
-            direction = directions(Q, S, grad, res)
+            direction = directions(Q, S, grad, res, error=error, target=STEP_TOL_FACTOR * tol)
         else:
             grad += gB
             grad[steps.pin] = 0.0
-            direction = directions(Q, S, grad, res, extra=contact.hessian(state, project=res > CONTACT_EXACT_RES))
+            direction = directions(Q, S, grad, res, extra=contact.hessian(state, project=res > CONTACT_EXACT_RES),
+                                   error=error, target=STEP_TOL_FACTOR * tol)
         steps.timings["newton"] = steps.timings.get("newton", 0.0) + time.perf_counter() - t0
         for _ in range(20):
             t0 = time.perf_counter()
