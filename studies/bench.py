@@ -633,7 +633,8 @@ def run(quick=False, sizes=None, fem=None, out=None, progress=None, freeform_siz
     fem : bool, optional
         Run the FEM comparison (default: not with ``quick``).
     out : path, optional
-        Directory for ``bench.json``, ``bench_scaling.png`` and the mask PNGs.
+        Directory for ``bench.json``, ``bench.txt`` (:func:`format_table`), ``bench_scaling.png``
+        and the mask PNGs.
     progress : bool, optional
         Progress bars (default: when stderr is a terminal).
     """
@@ -755,6 +756,9 @@ def _write(result, out):
 
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / "bench.json", result)
+    tmp = out / "bench.txt.part"
+    tmp.write_text(format_table(result) + "\n", encoding="utf-8")
+    tmp.replace(out / "bench.txt")
     try:
         plot(result, out / "bench_scaling.png")
     except ModuleNotFoundError as exc:  # matplotlib is optional

@@ -41,6 +41,7 @@ def test_quick_bench_reports_every_section_and_verdict(capsys, tmp_path):
     assert isinstance(v["growth"]["value"], float)
     assert v["fem"]["met"] is None and v["sheet"]["met"] is None and v["sheet_1e6"]["met"] is None  # not in --quick
     assert (tmp_path / "bench.json").is_file() and (tmp_path / "bench_scaling.png").is_file()
+    assert (tmp_path / "bench.txt").read_text().startswith("gdfe bench (quick)")
     assert len(list((tmp_path / "masks").glob("*.png"))) == 6
     text = format_table(res)
     assert f"{res['machine']['cores']} cores" in text and "Goals" in text and "lower bound" in text
