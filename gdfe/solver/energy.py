@@ -367,10 +367,10 @@ class LocalGlobal:
         return self.factor.solve(np.asfortranarray(rhs))
 
     def approx_solve_free(self, rhs):
-        """An approximation of ``L_ff^{-1} rhs`` (symmetric positive definite in ``rhs``): one V-cycle,
-        or the factor's exact solve where the design has no multigrid."""
+        """An approximation of ``L_ff^{-1} rhs`` (symmetric positive definite in ``rhs``): one V-cycle
+        in single precision, or the factor's exact solve where the design has no multigrid."""
         if self.uses_multigrid:
-            return self.multigrid.vcycle(rhs)
+            return self.multigrid.vcycle(rhs, single=True)
         return self.factor.solve(np.asfortranarray(rhs))
 
     def rest(self, activation=1.0) -> RestState:

@@ -25,6 +25,8 @@ the 10^6-cell matrix in 24 GiB), a V-cycle's linearly. ``gdfe bench`` times both
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -39,8 +41,10 @@ MULTIGRID_CELLS = 20_000
 
 #: Levels are coarsened until one has at most this many vertices; it is factorised.
 MG_COARSEST = 4000
-#: Damped-Jacobi sweeps before and after each coarse correction.
-MG_SMOOTHING = 2
+#: Damped-Jacobi sweeps before and after each coarse correction: one (V(1,1)) took 8% less time
+#: than two on the 10^5-cell corrugation's Newton-CG (79 CG iterations against 64, each cheaper)
+#: and as long in a solve to 1e-11.
+MG_SMOOTHING = 1
 #: The layers are coarsened with the plane once a level's in-plane spacing is this many
 #: times its layer spacing (lattice units): semi-coarsening keeps the levels near isotropic.
 MG_ASPECT = 2
@@ -182,16 +186,34 @@ class Multigrid:
     def n(self) -> int:
         return self.levels[0][0].shape[0] if self.levels else self.coarse_size
 
-    def vcycle(self, b, level=0):
-        """One V-cycle from zero for ``b`` ``(n,)`` or ``(n, r)``: an approximation of ``A^{-1} b``."""
-        if level == len(self.levels):
-            return self.coarse.solve(np.asfortranarray(b))
-        A, P, wd = self.levels[level]
+    @functools.cached_property
+    def _single(self):
+        """The levels in single precision (their index arrays shared), for :meth:`vcycle` with ``single``."""
+        f = np.float32
+        return [(sp.csr_matrix((A.data.astype(f), A.indices, A.indptr), shape=A.shape),
+                 sp.csr_matrix((P.data.astype(f), P.indices, P.indptr), shape=P.shape), wd.astype(f))
+                for A, P, wd in self.levels]
+
+    def vcycle(self, b, single=False):
+        """One V-cycle from zero for ``b`` ``(n,)`` or ``(n, r)``: an approximation of ``A^{-1} b``.
+
+        With ``single`` the smoothing and the transfers run in single precision (the coarsest
+        solve in double), for a preconditioner: half the memory traffic, 9% less time on the
+        10^5-cell corrugation's Newton-CG and the same CG iterations. The result is float64.
+        """
+        if single:
+            return self._cycle(np.asarray(b, np.float32), 0, self._single).astype(np.float64)
+        return self._cycle(b, 0, self.levels)
+
+    def _cycle(self, b, level, levels):
+        if level == len(levels):
+            return self.coarse.solve(np.asfortranarray(b, dtype=np.float64)).astype(b.dtype, copy=False)
+        A, P, wd = levels[level]
         wd = wd[:, None] if b.ndim == 2 else wd
         x = wd * b
         for _ in range(self.smoothing - 1):
             x += wd * (b - A @ x)
-        x += P @ self.vcycle(P.T @ (b - A @ x), level + 1)
+        x += P @ self._cycle(P.T @ (b - A @ x), level + 1, levels)
         for _ in range(self.smoothing):
             x += wd * (b - A @ x)
         return x

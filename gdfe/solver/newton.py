@@ -24,7 +24,7 @@ from gdfe.solver.linalg import factorise
 from gdfe.solver.multigrid import lattice
 
 __all__ = ["MU_MIN", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "CONTACT_ALPHAS", "CONTACT_EXACT_RES", "DRIFT_WINDOW",
-           "DRIFT_ENERGY", "DRIFT_SHRINK", "ON_DRIFT", "CG_RTOL_MIN", "CG_RTOL_MAX", "CG_TARGET_MARGIN", "COARSE_REUSE", "ReducedHessian", "Linearisation", "CoarseSpace", "pcg", "deformation",
+           "DRIFT_ENERGY", "DRIFT_SHRINK", "ON_DRIFT", "CG_RTOL_MIN", "CG_RTOL_MAX", "CG_TARGET_MARGIN", "COARSE_REUSE", "COARSE_REUSE_DAMPING", "ReducedHessian", "Linearisation", "CoarseSpace", "pcg", "deformation",
            "solve_newton", "factorised_directions", "cg_directions"]
 
 log = logging.getLogger(__name__)
@@ -53,8 +53,10 @@ CG_RTOL_MAX = 0.1
 CG_TARGET_MARGIN = 0.25
 #: The coarse matrix of ``method="newton-cg"`` is made and factorised again only when the last
 #: step moved the shape by more than this (the estimated distance to the solution, units of h)
-#: or the damping changed; otherwise the last one preconditions the step.
+#: or the damping changed much; otherwise the last one preconditions the step.
 COARSE_REUSE = 0.1
+#: ... and the damping changed the coarse matrix's L part by at most this fraction.
+COARSE_REUSE_DAMPING = 1e-2
 #: Drift (see :func:`solve_newton`): over this many iterations ...
 DRIFT_WINDOW = 10
 #: ... the energy fell by less than this fraction of itself (its 5th digit over ten iterations, the 6th in each) ...
@@ -475,10 +477,13 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200):
         rtol = cg_rtol if cg_rtol is not None else min(CG_RTOL_MAX, max(CG_RTOL_MIN, np.sqrt(res)))
         if cg_rtol is None and target > 0.0 and np.isfinite(error):
             rtol = min(CG_RTOL_MAX, max(rtol, CG_TARGET_MARGIN * target / error))
-        reuse = extra is None and error <= COARSE_REUSE
+        tries = [extra is None and error <= COARSE_REUSE]  # only a first try may reuse the last factor
 
         def step(mu):
-            fc = kept["factor"] if reuse and kept.get("mu") == mu else None
+            # the damping enters the coarse matrix as the factor 1 + max(mu, MU_MIN) of its L part
+            same = "mu" in kept and abs(max(mu, MU_MIN) - max(kept["mu"], MU_MIN)) <= COARSE_REUSE_DAMPING
+            fc = kept["factor"] if tries[-1] and same else None
+            tries.append(False)
             if fc is None:
                 fc = hessian.coarse_factor(lin, rest, mu, extra)
                 if fc is None:
@@ -568,8 +573,11 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
     estimated distance to the solution below ``STEP_TOL_FACTOR * tol`` (both in units of
     h). The plain step underestimates that distance by the ratio of stretching to bending
     stiffness; the Newton step does not. The estimate is the last step's length ``|s_k|``,
-    or ``|s_k| theta / (1 - theta)`` with the contraction ``theta = |s_k| / |s_k-1|`` of
-    two full steps when that is smaller (the bound of a sequence contracting by ``theta``).
+    or ``|s_k| theta / (1 - theta)`` when that is smaller (the bound of a sequence contracting
+    by ``theta``), with ``theta`` the larger of the last two contractions ``|s_k| / |s_k-1|``
+    of full steps: one small step after a large one (a buckled sheet settling) is not yet a
+    contraction (the 10^6-cell corrugation stopped on a 0.45 um step, estimated 2 nm, where the
+    tolerance asked 0.14 um).
     Steps are measured without their rigid part (:func:`deformation`): a turn of the whole
     part by round-off is not a distance from the solution. A solve converges when both
     tests hold, also at its last iteration.
@@ -600,6 +608,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
     it = cg = 0
     stalled = False
     error = prev = np.inf  # estimated distance to the solution; last full step, in units of h
+    last_theta = 0.0  # the contraction of the last two full steps (0: none yet)
     drift, stop_drift = None, False
     anchor = (0, E, np.inf, V.copy())  # iteration, energy, estimate and shape a drift is measured from
     # with a multigrid, the plain step's exact solve is made only where the test could pass
@@ -669,11 +678,12 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
                 error = moved
                 if taken == 1.0:
                     theta = moved / prev  # 0 after a first full step: no estimate yet
-                    if 0.0 < theta < 1.0:
-                        error = min(moved, moved * theta / (1.0 - theta))
-                    prev = moved
+                    rate = max(theta, last_theta)
+                    if 0.0 < theta and rate < 1.0:
+                        error = min(moved, moved * rate / (1.0 - rate))
+                    prev, last_theta = moved, theta
                 else:
-                    prev = np.inf
+                    prev, last_theta = np.inf, 0.0
                 # a step cut short by collision detection, not by the energy, keeps the damping
                 full = taken == 1.0 or (contact is not None and taken == trials[0])
                 mu = max(mu / 4.0, MU_MIN) if full else 2.0 * mu
@@ -684,7 +694,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
                 V = G if G is not None else steps.assemble(Q, Vp, activation).V
                 o = steps.orient(V, activation)
                 Q, E, S = o.Q, o.energy, o.S
-                error, prev = res, np.inf
+                error, prev, last_theta = res, np.inf, 0.0
             else:  # the plain step with the contact forces held, cut by collision detection
                 target = V + move
                 amax = contact.max_step(V, target, state)
@@ -694,7 +704,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
                     if trial.energy + trial_state.energy < E:
                         V, Q, S, state = Vt, trial.Q, trial.S, trial_state
                         E = trial.energy + trial_state.energy
-                        error, prev = res, np.inf
+                        error, prev, last_theta = res, np.inf, 0.0
                         break
                 else:
                     stalled = True
