@@ -190,6 +190,9 @@ class ReducedHessian:
 
     #: Spacing of the coarse grid of ``method="newton-cg"``, in film thicknesses.
     coarse_spacing = 1.5
+    #: ... widened so that the grid has at most about this many coarse cells per layer: the
+    #: coarse matrix is factorised every step, and its factorisation grows faster than its size.
+    coarse_cells = 10_000
     #: How ``method="newton-cg"`` combines the n x n and coarse corrections
     #: (``"multiplicative"`` or ``"additive"``, see :meth:`operator`).
     two_level = "multiplicative"
@@ -209,12 +212,15 @@ class ReducedHessian:
         """The :class:`CoarseSpace`: a grid about :attr:`coarse_spacing` film thicknesses apart.
 
         At least two cells apart, so that the coarse space carries the bending at lengths
-        above the thickness, which the n x n system alone resolves badly.
+        above the thickness, which the n x n system alone resolves badly; wider where that
+        would give more than :attr:`coarse_cells` coarse cells per layer.
         """
         steps = self.steps
         design = steps.design
         dx, dy, _ = design.mesh.spacing
-        c = max(2, int(np.ceil(self.coarse_spacing * design.h / min(dx, dy))))
+        layers = int(design.mesh.cell_k.max()) + 1
+        c = max(2, int(np.ceil(self.coarse_spacing * design.h / min(dx, dy))),
+                int(np.ceil(np.sqrt(design.n_cells / layers / self.coarse_cells))))
         ijk = lattice(design.mesh)
         i, j, k = ijk.T
         I0, ti = np.divmod(i, c)
