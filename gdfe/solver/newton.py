@@ -582,8 +582,10 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
     or ``|s_k| theta / (1 - theta)`` when that is smaller (the bound of a sequence contracting
     by ``theta``), with ``theta`` the larger of the last two contractions ``|s_k| / |s_k-1|``
     of full steps: one small step after a large one (a buckled sheet settling) is not yet a
-    contraction (the 10^6-cell corrugation stopped on a 0.45 um step, estimated 2 nm, where the
-    tolerance asked 0.14 um).
+    contraction (the 10^6-cell corrugation had stopped on a 0.45 um step, estimated 2 nm, where
+    the tolerance asked 0.14 um), and with CG's forcing loosened near the end
+    (:data:`CG_TARGET_MARGIN`) the last contraction alone fell short of the distance by 9x on
+    the stopping study's dome (``gdfe study stopping``).
     Steps are measured without their rigid part (:func:`deformation`): a turn of the whole
     part by round-off is not a distance from the solution. A solve converges when both
     tests hold, also at its last iteration.
