@@ -41,6 +41,7 @@ def test_quick_bench_reports_every_section_and_verdict(capsys, tmp_path):
     assert isinstance(v["growth"]["value"], float)
     assert v["fem"]["met"] is None and v["sheet"]["met"] is None and v["sheet_1e6"]["met"] is None  # not in --quick
     assert (tmp_path / "bench.json").is_file() and (tmp_path / "bench_scaling.png").is_file()
+    assert (tmp_path / "bench.txt").read_text().startswith("gdfe bench (quick)")
     assert len(list((tmp_path / "masks").glob("*.png"))) == 6
     text = format_table(res)
     assert f"{res['machine']['cores']} cores" in text and "Goals" in text and "lower bound" in text
@@ -152,3 +153,20 @@ def test_freeform_sheet_is_the_figure8_plate_at_the_asked_cell_count():
     assert top.shape == (100, 100) and pixel == pytest.approx(SIZE / 100)
     assert not film.all() and film.sum() == pytest.approx(np.pi / 4 * 100 ** 2, rel=0.02)
     assert R == pytest.approx(0.6947, abs=1e-4)
+
+
+def test_fem_ratio_where_the_fem_does_not_get_there_is_a_lower_bound_from_its_finest_level():
+    """FEM levels at 2e-2 .. 5e-3 relative error, GDFE down to 1e-4: at 1e-2 the ratio is interpolated;
+    at 3e-3 and 1e-3 the FEM's finest level (500 s) bounds the FEM's time from below."""
+    from studies.bench import _at_errors, _measured_ratio
+
+    fem = [{"relative_error": e, "seconds": t, "elements": n} for e, t, n in
+           ((2e-2, 1.0, 60), (1e-2, 20.0, 400), (5e-3, 500.0, 2500))]
+    gdfe_rows = [{"relative_error": e, "seconds": t, "reference_only": False} for e, t in
+                 ((1e-2, 0.01), (3e-3, 0.03), (1e-3, 0.1), (1e-4, 3.0))]
+    at = [a for a in _at_errors(fem, gdfe_rows, gdfe_rows, 0.49) if a["comparison"] == "same_fold"]
+    by = {a["relative_error"]: a for a in at}
+    assert by[1e-2]["ratio"] == pytest.approx(2000.0) and by[1e-2]["ratio_at_least"] is None
+    assert by[3e-3]["fem_extrapolated"] and by[3e-3]["ratio_at_least"] == pytest.approx(500.0 / 0.03)
+    assert by[1e-3]["ratio_at_least"] == pytest.approx(5000.0)
+    assert [_measured_ratio(a) for a in at] == [pytest.approx(2000.0), pytest.approx(500 / 0.03), pytest.approx(5000.0)]

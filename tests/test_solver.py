@@ -221,3 +221,43 @@ def test_a_given_start_reaches_the_same_shape():
     again = gdfe.simulate(des, init=ref.points + 1e-3).check()
     assert gdfe.fold_angle(again) == pytest.approx(gdfe.fold_angle(ref), abs=1e-6)
     assert again.iterations < ref.iterations
+
+
+@pytest.mark.parametrize("turn, slab", [(0.0, None), (0.4, 100)])
+def test_newton_cg_products_and_coarse_matrix_match_the_assembled_hessian(turn, slab, monkeypatch):
+    """The CG Hessian product is the assembled matrix's, and the coarse matrix is exactly Z3^T H Z3.
+
+    A disc of film (holes in the lattice, the pinned vertex inside) on two layers of cells,
+    turned in the plane by ``turn`` rad: the coarse grid follows the cells, not the axes;
+    the coarse matrix summed over slabs of ``slab`` cells.
+    """
+    if slab:
+        import gdfe.solver.newton as newton
+
+        monkeypatch.setattr(newton, "_COARSE_CHUNK", slab)
+    n = 24
+    x = (np.arange(n) + 0.5) / n - 0.5
+    film = np.hypot(*np.meshgrid(x, x, indexing="ij")) <= 0.5
+    top = np.mod(np.arange(n), 6)[:, None] * np.ones((1, n), int) >= 2
+    des = gdfe.from_masks(top, np.ones((n, n), bool), 0.1, 0.7, nz=2, film=film)
+    c, s = np.cos(turn), np.sin(turn)
+    mesh = des.mesh
+    des = gdfe.Design(mesh=gdfe.HexMesh(mesh.points @ np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]]), mesh.cells,
+                                        mesh.cell_ij, mesh.cell_k, mesh.spacing),
+                      material=des.material, R=des.R, h=des.h, regions=des.regions)
+    sv = Solver(des)
+    V = sv.linearised_start(des.mesh.points.copy())
+    o, rest, hs = sv.orient(V), sv.rest(1.0), sv.reduced_hessian
+    mu = 1e-3
+    H = hs.matrix(o.Q, o.S, rest, mu=mu)
+    lin = hs.linearise(o.Q, o.S, rest, floor=1.0)
+    apply_H, _ = hs.operator(lin, rest, mu)
+    v = np.random.default_rng(3).standard_normal((sv.n, 3))
+    v[sv.pin] = 0.0
+    expect = (H @ v.ravel()).reshape(-1, 3)
+    expect[sv.pin] = 0.0
+    np.testing.assert_allclose(apply_H(v), expect, rtol=0, atol=1e-12 * np.abs(expect).max())
+    Z3 = hs.coarse.Z3
+    Hc = (Z3.T @ H @ Z3).toarray()
+    np.testing.assert_allclose(hs.coarse_matrix(lin, rest, mu).toarray(), Hc, rtol=0, atol=1e-12 * np.abs(Hc).max())
+    assert hs.coarse.spacing >= 2 and Z3.shape[1] < Z3.shape[0] / 4

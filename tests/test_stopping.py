@@ -60,7 +60,7 @@ def test_drift_between_near_equal_states_is_reported_or_stops(caplog):
     ref = gdfe.simulate(des, tol=1e-10).check()
     V0 = ref.points + 1e-6 * des.h * np.random.default_rng(0).standard_normal(ref.points.shape)
 
-    def creeping(Q, S, grad, res, extra=None):
+    def creeping(Q, S, grad, res, extra=None, error=None, target=None):
         # a hundredth of the plain step (-L^-1 grad / 2): the energy, near its minimum, falls by
         # far less than 1e-6 of itself over ten iterations and the steps hardly shrink
         return lambda mu: (-0.005 * _solve_free(s, grad), 0)

@@ -28,7 +28,7 @@ def register(subparsers):
                               description="GDFE's speed, against its own lower bound and the reference FEM.")
     p.add_argument("--quick", action="store_true", help="tiny sizes, one repeat, no FEM (seconds)")
     json_arg(p, "the numbers")
-    out_arg(p, help="write bench.json, bench_scaling.png and the masks into this folder")
+    out_arg(p, help="write bench.json, bench.txt, bench_scaling.png and the masks into this folder")
     p.add_argument("--sizes", type=_sizes, help="corrugation sheet sizes in cells, comma-separated (e.g. 1e3,1e4,1e5,1e6)")
     p.add_argument("--freeform-sizes", type=_sizes_or_none,
                    help="sizes of the Figure 8 plates in cells (default 1e5; 'none' for none)")

@@ -66,14 +66,18 @@ def rest_shapes(design, activation=1.0):
 
 
 def system_matrix(design):
-    """The assembled ``A^T A = sum_i w_i S_i^T D S_i`` (n x n, symmetric, rows sum to 0) [mm^3]."""
+    """The assembled ``A^T A = sum_i w_i S_i^T D S_i`` (n x n CSR, symmetric, rows sum to 0) [mm^3].
+
+    With ``D = I - 1/8``, it is ``diag(C w) - C diag(w) C^T / 8`` for the vertex-cell incidence
+    ``C`` (n x m, eight ones a column): no 64 entries per cell are listed on the way.
+    """
     cells = design.mesh.cells
     w = design.mesh.cell_volumes()
-    rows = np.repeat(cells, 8, axis=1).ravel()
-    cols = np.tile(cells, (1, 8)).ravel()
-    data = (w[:, None, None] * D8[None]).ravel()
-    n = design.mesh.n_points
-    return sp.csr_matrix((data, (rows, cols)), shape=(n, n))
+    n, m = design.mesh.n_points, cells.shape[0]
+    C = sp.csr_matrix((np.ones(8 * m), cells.ravel().astype(np.int32), np.arange(0, 8 * m + 1, 8, dtype=np.int32)),
+                      shape=(m, n)).T.tocsr()  # (n, m)
+    CW = C @ sp.diags(w)
+    return (sp.diags(np.asarray(CW.sum(axis=1)).ravel()) - (CW @ C.T) / 8.0).tocsr()
 
 
 def _det3(A):
@@ -195,16 +199,6 @@ class RestState:
         M0 = np.trace(C, axis1=1, axis2=2)[:, None, None] * np.eye(3) - C
         lam0, W0 = np.linalg.eigh(M0)
         return np.einsum("mij,mj,mkj->mik", W0, 1.0 / np.sqrt(np.maximum(lam0, 1e-300)), W0)
-
-    @functools.cached_property
-    def Kx(self):
-        """The cross-product matrices ``[p_k]x`` of the rest-shape vertices, ``(m, 8, 3, 3)``."""
-        P = self.P
-        Kx = np.zeros(P.shape + (3,))
-        Kx[..., 0, 1], Kx[..., 0, 2] = -P[..., 2], P[..., 1]
-        Kx[..., 1, 0], Kx[..., 1, 2] = P[..., 2], -P[..., 0]
-        Kx[..., 2, 0], Kx[..., 2, 1] = -P[..., 1], P[..., 0]
-        return Kx
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -338,8 +332,10 @@ class LocalGlobal:
         rigid = np.nonzero(design.material == Material.RIGID)[0]
         self.pin = int(self.cells[rigid[0] if rigid.size else 0, 0])
         self.free = np.delete(np.arange(self.n), self.pin)
-        self.L_ff = self.L[self.free][:, self.free].tocsc()
-        self.L_fp = self.L[self.free][:, [self.pin]]
+        rows = self.L[self.free]
+        self.L_ff = rows[:, self.free].tocsr()  # symmetric: its CSR arrays are also its CSC arrays
+        self.L_fp = rows[:, [self.pin]]
+        del rows
         self.B = sp.csr_matrix((np.repeat(self.w, 8), (self.cells.ravel(), np.arange(8 * m))),
                                shape=(self.n, 8 * m))
         self.uses_multigrid = m > MULTIGRID_CELLS
@@ -371,10 +367,10 @@ class LocalGlobal:
         return self.factor.solve(np.asfortranarray(rhs))
 
     def approx_solve_free(self, rhs):
-        """An approximation of ``L_ff^{-1} rhs`` (symmetric positive definite in ``rhs``): one V-cycle,
-        or the factor's exact solve where the design has no multigrid."""
+        """An approximation of ``L_ff^{-1} rhs`` (symmetric positive definite in ``rhs``): one V-cycle
+        in single precision, or the factor's exact solve where the design has no multigrid."""
         if self.uses_multigrid:
-            return self.multigrid.vcycle(rhs)
+            return self.multigrid.vcycle(rhs, single=True)
         return self.factor.solve(np.asfortranarray(rhs))
 
     def rest(self, activation=1.0) -> RestState:
@@ -388,14 +384,14 @@ class LocalGlobal:
         """Orientation step: the optimal rotations at ``V`` ``(n, 3)`` [mm] and the energy there."""
         t0 = time.perf_counter()
         P = self.rest(activation).P
-        X = V[self.cells]
+        X = np.take(V, self.cells, axis=0)  # np.take: 3.6x faster than fancy indexing here
         X -= X.mean(axis=1, keepdims=True)
-        S = np.einsum("mki,mkj->mij", X, P)
+        S = np.matmul(X.transpose(0, 2, 1), P)  # 3.8x faster than the same einsum
         Q, _ = rotations(S)
         # sum of squares of the misfit itself, not |X|^2 + |P|^2 - 2 tr(Q^T S), which
         # cancels to round-off when a cell reaches its rest shape
         X -= np.matmul(P, Q.transpose(0, 2, 1))
-        E = float(self.w @ np.einsum("mki,mki->m", X, X))
+        E = float(np.einsum("m,mki,mki->", self.w, X, X))  # no BLAS dot: see gdfe.solver.newton._dot
         self.timings["orientation"] += time.perf_counter() - t0
         return Orientation(Q, S, max(E, 0.0))
 
@@ -407,7 +403,7 @@ class LocalGlobal:
         """
         t0 = time.perf_counter()
         P = self.rest(activation).P
-        T = np.einsum("mij,mkj->mki", Q, P).reshape(-1, 3)
+        T = np.matmul(P, Q.transpose(0, 2, 1)).reshape(-1, 3)
         b = self.B @ T
         if not solve:
             self.timings["assembly"] += time.perf_counter() - t0

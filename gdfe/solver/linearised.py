@@ -113,8 +113,8 @@ def linearised_start_cg(steps, hessian, V, activation=1.0, rtol=1e-6, max_iter=5
     m = steps.cells.shape[0]
     eye = np.broadcast_to(np.eye(3), (m, 3, 3))
     C = np.einsum("mki,mkj->mij", P, P)
-    RG = hessian.blocks(eye, C, rest, floor=1.0)
-    apply_H, apply_P = hessian.operator(RG, 0.0)
+    lin = hessian.linearise(eye, C, rest, floor=1.0)
+    apply_H, apply_P = hessian.operator(lin, rest, 0.0)
     b = steps.B @ P.reshape(-1, 3)
     grad = apply_H(V) - 2.0 * b  # 2 (L V - b) - 2 J^T J V; zero at the pinned vertex
     grad[steps.pin] = 0.0

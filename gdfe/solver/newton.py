@@ -1,7 +1,7 @@
 """Damped Newton on the rotation-reduced energy: ``method="newton"`` and ``method="newton-cg"``.
 
 With every rotation optimal, Eq. 5 is a function of the vertices alone. This module holds
-its Hessian (:class:`ReducedHessian`: the per-step blocks, and the mesh-only constants
+its Hessian (:class:`ReducedHessian`: the per-step :class:`Linearisation` and ``J``, and the mesh-only constants
 ``L (x) I3``, the sparsity of the Jacobian ``J`` and the coarse space of the CG
 preconditioner), the damped-Newton outer loop (:func:`solve_newton`) and the two ways to
 compute its steps: the 3n x 3n Hessian factorised (:func:`factorised_directions`) or
@@ -21,9 +21,10 @@ import scipy.sparse as sp
 from gdfe._validation import GdfeError
 from gdfe.solver.energy import SolveStats
 from gdfe.solver.linalg import factorise
+from gdfe.solver.multigrid import lattice
 
 __all__ = ["MU_MIN", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "CONTACT_ALPHAS", "CONTACT_EXACT_RES", "DRIFT_WINDOW",
-           "DRIFT_ENERGY", "DRIFT_SHRINK", "ON_DRIFT", "ReducedHessian", "CoarseSpace", "pcg", "deformation",
+           "DRIFT_ENERGY", "DRIFT_SHRINK", "ON_DRIFT", "CG_RTOL_MIN", "CG_RTOL_MAX", "CG_TARGET_MARGIN", "COARSE_REUSE", "COARSE_REUSE_DAMPING", "ReducedHessian", "Linearisation", "CoarseSpace", "pcg", "deformation",
            "solve_newton", "factorised_directions", "cg_directions"]
 
 log = logging.getLogger(__name__)
@@ -46,6 +47,16 @@ CONTACT_EXACT_RES = 1e-2
 #: residual, clipped to [CG_RTOL_MIN, CG_RTOL_MAX] (relative, preconditioned).
 CG_RTOL_MIN = 1e-3
 CG_RTOL_MAX = 0.1
+#: ... and never tighter than this fraction of the reduction the stopping test still asks of the
+#: estimated distance to the solution (``STEP_TOL_FACTOR * tol / estimate``): the last step need
+#: only get below the tolerance, not to round-off.
+CG_TARGET_MARGIN = 0.25
+#: The coarse matrix of ``method="newton-cg"`` is made and factorised again only when the last
+#: step moved the shape by more than this (the estimated distance to the solution, units of h)
+#: or the damping changed much; otherwise the last one preconditions the step.
+COARSE_REUSE = 0.1
+#: ... and the damping changed the coarse matrix's L part by at most this fraction.
+COARSE_REUSE_DAMPING = 1e-2
 #: Drift (see :func:`solve_newton`): over this many iterations ...
 DRIFT_WINDOW = 10
 #: ... the energy fell by less than this fraction of itself (its 5th digit over ten iterations, the 6th in each) ...
@@ -56,20 +67,72 @@ DRIFT_SHRINK = 0.1
 ON_DRIFT = ("warn", "stop")
 
 
+def _cross(p):
+    """The cross-product matrices ``[p]x`` of the vectors ``p`` ``(..., 3)``: ``(..., 3, 3)``."""
+    K = np.zeros(p.shape + (3,))
+    K[..., 0, 1], K[..., 0, 2] = -p[..., 2], p[..., 1]
+    K[..., 1, 0], K[..., 1, 2] = p[..., 2], -p[..., 0]
+    K[..., 2, 0], K[..., 2, 1] = -p[..., 1], p[..., 0]
+    return K
+
+
+#: Cells per chunk when a 3m x 3n matrix is built from per-cell blocks (bounds the temporaries).
+_CHUNK = 65_536
+#: Cells per slab of ``J Z`` when the coarse matrix is summed (bounds its memory at 10^6 cells).
+_COARSE_CHUNK = 262_144
+
+
+def _block_rows(lin, p, pattern):
+    """The sparse matrix with rows ``root_i^T sum_k [p_ik]x Q_i^T (.)_{cols[i, k]}`` (CSR, 3m x 3 n_cols).
+
+    With ``p`` the rest shapes and the cells as columns this is ``J``; with the rest shapes
+    carried to the corners of a coarse grid, ``J Z``. Entry ``(a, k, b)`` of cell ``i`` is
+    ``p_k . (q_b x r_a)``, ``q_b`` the rows of ``Q_i`` and ``r_a`` the columns of ``root_i``.
+
+    Parameters
+    ----------
+    lin : Linearisation
+    p : (m, r, 3) float array [mm]
+    pattern : (indices, indptr, shape)
+        The CSR structure (:func:`_row_pattern`).
+    """
+    m, r, _ = p.shape
+    data = np.empty((m, 3, r, 3))
+    for s in range(0, m, _CHUNK):
+        e = min(m, s + _CHUNK)
+        c = np.cross(lin.Q[s:e, None, :, :], lin.root[s:e].transpose(0, 2, 1)[:, :, None, :])  # [i, a, b, d]
+        np.matmul(p[s:e, None], c.transpose(0, 1, 3, 2), out=data[s:e])
+    indices, indptr, shape = pattern
+    return sp.csr_matrix((data.ravel(), indices, indptr), shape=shape)
+
+
+def _row_pattern(cols, n_cols):
+    """The CSR structure of :func:`_block_rows` for the columns ``cols`` ``(m, r)`` of every cell."""
+    m, r = cols.shape
+    indices = np.broadcast_to((3 * cols[:, None, :, None] + np.arange(3)).astype(np.int32), (m, 3, r, 3)).ravel()
+    return indices, np.arange(0, 9 * r * m + 1, 3 * r), (3 * m, 3 * n_cols)
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
-class _Pattern:
-    """The CSR structure of a sparse matrix whose values are a permutation of a flat array."""
+class Linearisation:
+    """The rotation-reduced energy's Hessian at one iterate, per cell (:meth:`ReducedHessian.linearise`).
 
-    order: np.ndarray  # value k of the matrix is entry order[k] of the flat array
-    indices: np.ndarray
-    indptr: np.ndarray
-    shape: tuple
+    The Hessian is ``2 (L (x) I3 - J^T J)``; row block ``i`` of ``J`` maps the vertices
+    ``v`` to ``root_i^T sum_k p_k x (Q_i^T v_k)`` over the cell's vertices.
 
-    def fill(self, values):
-        return sp.csr_matrix((values[self.order], self.indices, self.indptr), shape=self.shape)
+    Attributes
+    ----------
+    Q : (m, 3, 3) float array
+        The rotations.
+    root : (m, 3, 3) float array [mm^(1/2)]
+        ``(w N)^(1/2)``, see :meth:`ReducedHessian.linearise`.
+    """
+
+    Q: np.ndarray
+    root: np.ndarray
 
 
-@dataclasses.dataclass(frozen=True, eq=False)
+@dataclasses.dataclass(eq=False)
 class CoarseSpace:
     """The coarse grid of the ``"newton-cg"`` preconditioner.
 
@@ -79,17 +142,30 @@ class CoarseSpace:
         Bilinear interpolation from the coarse grid, per layer of vertices; the pinned
         vertex's row is zero.
     Z3 : (3n, 3k) sparse matrix
-        ``Z (x) I3``.
+        ``Z (x) I3`` (made when asked for: only the contact barrier's Hessian needs it).
     Lc3 : (3k, 3k) sparse matrix
         ``(Z_f^T L_ff Z_f) (x) I3``, the coarse n x n system for the three coordinates.
     Zt : (k, n) sparse matrix
         ``Z^T`` (CSR), made once: the restriction of every coarse correction.
+    corners : (m, 8) int array
+        The columns of ``Z`` at the corners of the coarse cell each cell lies in
+        (``(a, b, l)`` in x, y and layer, ``4 a + 2 b + l``).
+    spacing : int
+        The coarse grid's spacing, in cells.
+    ijk : (n, 3) int array
+        Lattice indices of the vertices (:func:`gdfe.solver.multigrid.lattice`).
     """
 
     Z: sp.csr_matrix
-    Z3: sp.csr_matrix
     Lc3: sp.csc_matrix
-    Zt: sp.csr_matrix = None
+    Zt: sp.csr_matrix
+    corners: np.ndarray
+    spacing: int
+    ijk: np.ndarray
+
+    @functools.cached_property
+    def Z3(self):
+        return sp.kron(self.Z, sp.eye(3), format="csr")
 
 
 class ReducedHessian:
@@ -102,7 +178,9 @@ class ReducedHessian:
     24 vertex coordinates is ``2 w (D (x) I3 - G^T M^{-1} G)`` with ``G_k = [p_k]x Q^T``.
     Since ``G G^T = M0 = tr(C) I - C``, ``C = P^T P``, it is positive semi-definite exactly
     when the eigenvalues of ``M0^{-1/2} M M0^{-1/2}`` are >= 1. Summed over cells, the
-    Hessian is ``2 (L (x) I3 - J^T J)`` with ``J`` (3m x 3n) made of :meth:`blocks`.
+    Hessian is ``2 (L (x) I3 - J^T J)``; ``J`` (3m x 3n, :meth:`jacobian`) is made per
+    step from a :class:`Linearisation` straight into its CSR arrays (its column indices made
+    once), and ``J^T`` is its transpose's view: one copy of the blocks, none of ``J^T J``.
 
     Parameters
     ----------
@@ -112,12 +190,16 @@ class ReducedHessian:
 
     #: Spacing of the coarse grid of ``method="newton-cg"``, in film thicknesses.
     coarse_spacing = 1.5
+    #: ... widened so that the grid has at most about this many coarse cells per layer: the
+    #: coarse matrix is factorised every step, and its factorisation grows faster than its size.
+    coarse_cells = 10_000
     #: How ``method="newton-cg"`` combines the n x n and coarse corrections
     #: (``"multiplicative"`` or ``"additive"``, see :meth:`operator`).
     two_level = "multiplicative"
 
     def __init__(self, steps):
         self.steps = steps
+        self._coarse_rest = None
 
     # -- mesh-only constants, made on first use -------------------------------------------
     @functools.cached_property
@@ -126,38 +208,21 @@ class ReducedHessian:
         return sp.kron(self.steps.L, sp.eye(3), format="csr")
 
     @functools.cached_property
-    def _patterns(self):
-        """The sparsity of ``J`` and of ``J^T``: it depends on the mesh only."""
-        cells, n = self.steps.cells, self.steps.n
-        m = cells.shape[0]
-        rows = np.broadcast_to((3 * np.arange(m))[:, None, None, None] + np.arange(3)[None, None, :, None],
-                               (m, 8, 3, 3))
-        cols = np.broadcast_to(3 * cells[:, :, None, None] + np.arange(3)[None, None, None, :],
-                               (m, 8, 3, 3))
-        shape = (3 * m, 3 * n)
-        # the data of J0 and Jt0 are 1 + the flat index into the blocks
-        order = np.lexsort((cols.ravel(), rows.ravel()))
-        J0 = sp.csr_matrix((order + 1.0, cols.ravel()[order], np.arange(0, 72 * m + 1, 24)), shape=shape)
-        Jt0 = J0.T.tocsr()
-        return (_Pattern(order, J0.indices, J0.indptr, shape),
-                _Pattern(Jt0.data.astype(np.int64) - 1, Jt0.indices, Jt0.indptr, shape[::-1]))
-
-    @functools.cached_property
     def coarse(self) -> CoarseSpace:
         """The :class:`CoarseSpace`: a grid about :attr:`coarse_spacing` film thicknesses apart.
 
         At least two cells apart, so that the coarse space carries the bending at lengths
-        above the thickness, which the n x n system alone resolves badly.
+        above the thickness, which the n x n system alone resolves badly; wider where that
+        would give more than :attr:`coarse_cells` coarse cells per layer.
         """
         steps = self.steps
         design = steps.design
-        mesh = design.mesh
-        X = mesh.points
-        dx, dy, dz = mesh.spacing
-        c = max(2, int(np.ceil(self.coarse_spacing * design.h / min(dx, dy))))
-        i = np.rint((X[:, 0] - X[:, 0].min()) / dx).astype(int)
-        j = np.rint((X[:, 1] - X[:, 1].min()) / dy).astype(int)
-        k = np.rint((X[:, 2] - X[:, 2].min()) / dz).astype(int)
+        dx, dy, _ = design.mesh.spacing
+        layers = int(design.mesh.cell_k.max()) + 1
+        c = max(2, int(np.ceil(self.coarse_spacing * design.h / min(dx, dy))),
+                int(np.ceil(np.sqrt(design.n_cells / layers / self.coarse_cells))))
+        ijk = lattice(design.mesh)
+        i, j, k = ijk.T
         I0, ti = np.divmod(i, c)
         J0, tj = np.divmod(j, c)
         ti, tj = ti / c, tj / c
@@ -170,14 +235,46 @@ class ReducedHessian:
         Z.eliminate_zeros()
         used = np.nonzero(np.bincount(Z.indices, minlength=Z.shape[1]))[0]
         Z = Z[:, used].tocsr()
+        # every cell lies in one coarse cell: the columns of that cell's eight corners
+        cells = steps.cells
+        cI, cJ, cK = i[cells].min(axis=1) // c, j[cells].min(axis=1) // c, k[cells].min(axis=1)
+        keys = np.stack([((cI + a) * nJ + (cJ + b)) * nK + cK + l for a in (0, 1) for b in (0, 1) for l in (0, 1)],
+                        axis=1)
+        column = np.zeros(max(int(cols.max()), int(keys.max())) + 1, np.int64)
+        column[used] = np.arange(used.size)  # a corner no vertex of the cell weighs on gets 0, weight 0
         Zf = Z[steps.free]
         Lc3 = sp.kron(Zf.T @ steps.L_ff @ Zf, sp.eye(3), format="csc")
-        Z3 = sp.kron(Z, sp.eye(3), format="csr")
-        return CoarseSpace(Z=Z, Z3=Z3, Lc3=Lc3, Zt=Z.T.tocsr())
+        return CoarseSpace(Z=Z, Lc3=Lc3, Zt=Z.T.tocsr(), corners=column[keys].astype(np.int32), spacing=c,
+                           ijk=ijk.astype(np.int32))
+
+    def _corner_weights(self, s, e):
+        """``W[i, k, q]``, cells ``s:e``: the weight of cell ``i``'s corner ``q`` (:attr:`CoarseSpace.corners`) at its vertex ``k``."""
+        cs = self.coarse
+        cells = self.steps.cells[s:e]
+        i, j, k = (cs.ijk[cells, a].astype(np.int64) for a in range(3))  # (c, 8) each
+        c = cs.spacing
+        ti = (i - (i.min(axis=1) // c * c)[:, None]) / c
+        tj = (j - (j.min(axis=1) // c * c)[:, None]) / c
+        up = k - k.min(axis=1)[:, None]
+        live = cells != self.steps.pin  # the pinned vertex's row of Z is zero
+        return np.stack([(ti if a else 1 - ti) * (tj if b else 1 - tj) * (up == l) * live
+                         for a in (0, 1) for b in (0, 1) for l in (0, 1)], axis=2)
+
+    def coarse_rest(self, rest):
+        """The rest shapes carried to the coarse corners of every cell, ``W_i^T P_i``: ``(m, 8, 3)`` [mm]."""
+        cached = self._coarse_rest
+        if cached is None or cached[0] is not rest:
+            P = rest.P
+            out = np.empty_like(P)
+            for s in range(0, P.shape[0], _CHUNK):
+                e = min(P.shape[0], s + _CHUNK)
+                out[s:e] = np.matmul(self._corner_weights(s, e).transpose(0, 2, 1), P[s:e])
+            cached = self._coarse_rest = (rest, out)
+        return cached[1]
 
     # -- per step ------------------------------------------------------------------------
-    def blocks(self, Q, S, rest, floor=1.0):
-        """``root^T G_k`` of every cell, ``(m, 8, 3, 3)``: the blocks of ``J``.
+    def linearise(self, Q, S, rest, floor=1.0) -> Linearisation:
+        """The :class:`Linearisation` at rotations ``Q`` and cross-covariances ``S``.
 
         Parameters
         ----------
@@ -191,22 +288,25 @@ class ReducedHessian:
             contribute negative curvature, which the sum over cells usually absorbs.
         """
         M0is = rest.M0is
-        Y = np.einsum("mji,mjk->mik", Q, S)
+        Y = np.matmul(Q.transpose(0, 2, 1), S)
         Y = 0.5 * (Y + Y.transpose(0, 2, 1))
         M = np.trace(Y, axis1=1, axis2=2)[:, None, None] * np.eye(3) - Y
-        B = M0is @ M @ M0is
-        lam, W = np.linalg.eigh(B)
+        lam, W = np.linalg.eigh(M0is @ M @ M0is)
         lam = np.maximum(lam, floor)
-        # (w N)^(1/2) with N = M0^{-1/2} W diag(1/lam) W^T M0^{-1/2}
-        root = np.einsum("mij,mjk,mk->mik", M0is, W, np.sqrt(self.steps.w[:, None] / lam))
-        G = np.matmul(rest.Kx, Q.transpose(0, 2, 1)[:, None])  # G_k = [p_k]x Q^T, (m, 8, 3, 3)
-        return np.matmul(root.transpose(0, 2, 1)[:, None], G)  # root^T G_k
+        # root = (w N)^(1/2) = M0^{-1/2} W diag((w/lam)^(1/2)) with N = M0^{-1/2} W diag(1/lam) W^T M0^{-1/2}
+        return Linearisation(Q=Q, root=(M0is @ W) * np.sqrt(self.steps.w[:, None] / lam)[:, None, :])
 
-    def jacobian(self, RG):
-        """``J`` (3m x 3n, rows ``3 i + a``) and ``J^T``, both CSR, from the blocks ``RG``."""
-        values = RG.ravel()
-        pattern, pattern_t = self._patterns
-        return pattern.fill(values), pattern_t.fill(values)
+    @functools.cached_property
+    def _j_pattern(self):
+        return _row_pattern(self.steps.cells, self.steps.n)
+
+    @functools.cached_property
+    def _jz_pattern(self):
+        return _row_pattern(self.coarse.corners, self.coarse.Z.shape[1])
+
+    def jacobian(self, lin, rest):
+        """``J`` (3m x 3n, CSR, rows ``3 i + a``) at ``lin``."""
+        return _block_rows(lin, rest.P, self._j_pattern)
 
     def matrix(self, Q, S, rest, mu=0.0):
         """Positive semi-definite Hessian (3n x 3n, sparse), plus ``mu`` times ``2 L``.
@@ -214,12 +314,34 @@ class ReducedHessian:
         The per-cell eigenvalues are clamped to >= 1, which keeps every Newton step a
         descent direction. Unknowns ordered vertex-major (``3 v + c``).
         """
-        RG = self.blocks(Q, S, rest, floor=1.0)
-        J, _ = self.jacobian(RG)
+        J = self.jacobian(self.linearise(Q, S, rest, floor=1.0), rest)
         return (2.0 * (1.0 + mu)) * self.L3 - 2.0 * (J.T @ J)
 
-    def operator(self, RG, mu, extra=None):
-        """Hessian product and preconditioner for the blocks ``RG`` and damping ``mu``.
+    def coarse_matrix(self, lin, rest, mu, extra=None):
+        """``Z3^T H Z3``: the Hessian with damping ``max(mu, MU_MIN)`` on the coarse grid (3k x 3k, CSC)."""
+        cs = self.coarse
+        Hc = (2.0 * (1.0 + max(mu, MU_MIN))) * cs.Lc3
+        pc, (indices, indptr, shape) = self.coarse_rest(rest), self._jz_pattern
+        m = pc.shape[0]
+        for s in range(0, m, _COARSE_CHUNK):  # J Z a slab of cells at a time: its memory stays bounded
+            e = min(m, s + _COARSE_CHUNK)
+            part = Linearisation(Q=lin.Q[s:e], root=lin.root[s:e])
+            ptr = indptr[3 * s:3 * e + 1]
+            JZ = _block_rows(part, pc[s:e], (indices[ptr[0]:ptr[-1]], ptr - ptr[0], (3 * (e - s), shape[1])))
+            Hc = Hc - 2.0 * (JZ.T @ JZ)
+        if extra is not None:
+            Hc = Hc + cs.Z3.T @ extra @ cs.Z3
+        return sp.csc_matrix(Hc)
+
+    def coarse_factor(self, lin, rest, mu, extra=None):
+        """:meth:`coarse_matrix` factorised; None when it is singular."""
+        try:
+            return factorise(self.coarse_matrix(lin, rest, mu, extra))
+        except RuntimeError:  # SuperLU: exactly singular
+            return None
+
+    def operator(self, lin, rest, mu, extra=None, coarse_factor=None):
+        """Hessian product and preconditioner at ``lin`` with damping ``mu``.
 
         The preconditioner combines the exact inverse of the (scaled) n x n system for
         the three coordinates with a Galerkin coarse correction ``Z (Z^T H Z)^{-1} Z^T``:
@@ -228,7 +350,8 @@ class ReducedHessian:
         or summed (``"additive"``).
 
         ``extra`` (3n x 3n, vertex-major, positive semi-definite; the contact barrier's
-        Hessian) is added to the Hessian and to the coarse matrix.
+        Hessian) is added to the Hessian and to the coarse matrix. ``coarse_factor``, one
+        made earlier (:meth:`coarse_factor`), is used instead of making one.
 
         Returns
         -------
@@ -239,15 +362,11 @@ class ReducedHessian:
         steps = self.steps
         cs = self.coarse
         Z, Zt = cs.Z, cs.Zt
-        J, Jt = self.jacobian(RG)
-        JZ = (J @ cs.Z3).tocsc()
-        Hc = (2.0 * (1.0 + max(mu, MU_MIN))) * cs.Lc3 - 2.0 * (JZ.T @ JZ)
-        if extra is not None:
-            Hc = (Hc + cs.Z3.T @ extra @ cs.Z3).tocsc()
-        try:
-            fc = factorise(Hc)
-        except RuntimeError:  # SuperLU: exactly singular
+        fc = self.coarse_factor(lin, rest, mu, extra) if coarse_factor is None else coarse_factor
+        if fc is None:
             return None
+        J = self.jacobian(lin, rest)
+        Jt = J.T
         pin, free, L, fine_solve = steps.pin, steps.free, steps.L, steps.approx_solve_free
         scale = 2.0 * (1.0 + mu)
         two_level = self.two_level
@@ -277,6 +396,12 @@ class ReducedHessian:
         return apply_H, apply_P
 
 
+def _dot(a, b):
+    """``sum(a * b)`` without BLAS: a threaded BLAS dot on a busy 2-core machine took 5 ms for 15 000
+    numbers (threads woken and waited for) against 5 us in one thread."""
+    return float(np.einsum("ij,ij->", a, b))
+
+
 def pcg(apply_H, apply_P, rhs, rtol, max_iter):
     """Preconditioned CG from 0; stops at negative curvature.
 
@@ -288,21 +413,21 @@ def pcg(apply_H, apply_P, rhs, rtol, max_iter):
     x = np.zeros_like(rhs)
     r = rhs.copy()
     z = apply_P(r)
-    rz = float(np.vdot(r, z))
+    rz = _dot(r, z)
     if not rz > 0:
         return x, 0
     stop = rtol * np.sqrt(rz)
     p = z
     for k in range(1, max_iter + 1):
         Hp = apply_H(p)
-        pHp = float(np.vdot(p, Hp))
+        pHp = _dot(p, Hp)
         if not pHp > 0:
             return x, k
         a = rz / pHp
         x += a * p
         r -= a * Hp
         z = apply_P(r)
-        rz_new = float(np.vdot(r, z))
+        rz_new = _dot(r, z)
         if not rz_new > 0 or np.sqrt(rz_new) <= stop:
             return x, k
         p = z + (rz_new / rz) * p
@@ -313,13 +438,13 @@ def pcg(apply_H, apply_P, rhs, rtol, max_iter):
 def factorised_directions(hessian, rest):
     """Newton steps of ``method="newton"``: the 3n x 3n Hessian factorised, per damping ``mu``.
 
-    Returns ``directions(Q, S, grad, res, extra=None)``, see :func:`solve_newton`.
+    Returns ``directions(Q, S, grad, res, extra=None, error=inf, target=0)``, see :func:`solve_newton`.
     """
     steps = hessian.steps
     fdof = (3 * steps.free[:, None] + np.arange(3)).ravel()
     n = steps.n
 
-    def directions(Q, S, grad, res, extra=None):
+    def directions(Q, S, grad, res, extra=None, error=np.inf, target=0.0):
         def step(mu):
             H = hessian.matrix(Q, S, rest, mu=mu)
             if extra is not None:
@@ -342,20 +467,37 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200):
     ``floor`` (nearer the true Hessian, hence fewer Newton steps; CG stops at negative
     curvature and the energy test rejects a bad step). Each CG iteration costs one solve
     with the factorised n x n system for three right-hand sides, Hessian products and
-    solves with the coarse matrix, which is factorised once per step. CG stops at a
-    relative (preconditioned) residual ``cg_rtol``, by default the square root of the
-    plain step's residual clipped to [1e-3, 0.1]: loose far from the solution, tight near it.
+    solves with the coarse matrix, which is factorised once per step (kept for the next
+    step while the shape moves by less than :data:`COARSE_REUSE`). CG stops at a relative
+    (preconditioned) residual ``cg_rtol``, by default the square root of the plain step's
+    residual clipped to [:data:`CG_RTOL_MIN`, :data:`CG_RTOL_MAX`] - loose far from the
+    solution, tight near it - and no tighter than :data:`CG_TARGET_MARGIN` times the
+    reduction the stopping test still asks for.
 
-    Returns ``directions(Q, S, grad, res, extra=None)``, see :func:`solve_newton`.
+    Returns ``directions(Q, S, grad, res, extra=None, error=inf, target=0)``, see :func:`solve_newton`.
     """
-    def directions(Q, S, grad, res, extra=None):
-        RG = hessian.blocks(Q, S, rest, floor=floor)
+    kept = {}  # the last coarse factor and the damping it was made with
+
+    def directions(Q, S, grad, res, extra=None, error=np.inf, target=0.0):
+        lin = hessian.linearise(Q, S, rest, floor=floor)
         rtol = cg_rtol if cg_rtol is not None else min(CG_RTOL_MAX, max(CG_RTOL_MIN, np.sqrt(res)))
+        if cg_rtol is None and target > 0.0 and np.isfinite(error):
+            rtol = min(CG_RTOL_MAX, max(rtol, CG_TARGET_MARGIN * target / error))
+        tries = [extra is None and error <= COARSE_REUSE]  # only a first try may reuse the last factor
 
         def step(mu):
-            ops = hessian.operator(RG, mu, extra)
-            if ops is None:
-                return None, 0
+            # the damping enters the coarse matrix as the factor 1 + max(mu, MU_MIN) of its L part
+            same = "mu" in kept and abs(max(mu, MU_MIN) - max(kept["mu"], MU_MIN)) <= COARSE_REUSE_DAMPING
+            fc = kept["factor"] if tries[-1] and same else None
+            tries.append(False)
+            if fc is None:
+                fc = hessian.coarse_factor(lin, rest, mu, extra)
+                if fc is None:
+                    return None, 0
+                kept.clear()
+                if extra is None:
+                    kept.update(factor=fc, mu=mu)
+            ops = hessian.operator(lin, rest, mu, extra, coarse_factor=fc)
             x, k = pcg(*ops, -grad, rtol, cg_max)
             log.debug("CG: %d iterations to %.1e", k, rtol)
             return x, k
@@ -373,7 +515,7 @@ def deformation(step, V):
     """
     r = V - V.mean(axis=0)
     d = step - step.mean(axis=0)
-    M = np.einsum("ij,ij->", r, r) * np.eye(3) - r.T @ r
+    M = np.einsum("ij,ij->", r, r) * np.eye(3) - np.einsum("ij,ik->jk", r, r)
     try:
         omega = np.linalg.solve(M, np.cross(r, d).sum(axis=0))
     except np.linalg.LinAlgError:  # all points on a line: no rotation to remove
@@ -404,10 +546,12 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
     max_iter : int
         Limit on the assembly steps.
     directions : callable
-        ``directions(Q, S, grad, res, extra=None)`` returns a function of the damping
-        ``mu`` giving ``(step, cg_iterations)``: the Newton step as an ``(n, 3)`` array
-        (None when it cannot be computed) and the CG iterations it took; ``extra`` is a
-        positive semi-definite 3n x 3n matrix added to the Hessian (the contact barrier's).
+        ``directions(Q, S, grad, res, extra=None, error=inf, target=0)`` returns a function of
+        the damping ``mu`` giving ``(step, cg_iterations)``: the Newton step as an ``(n, 3)``
+        array (None when it cannot be computed) and the CG iterations it took; ``extra`` is
+        a positive semi-definite 3n x 3n matrix added to the Hessian (the contact barrier's),
+        ``error`` the estimated distance to the solution and ``target`` the distance the
+        stopping test asks for (units of h).
     alphas : tuple of float
         Step lengths tried, in order; the first that lowers the energy is taken and
         ``mu`` shrinks (a full step) or doubles (a shortened one); when none does, ``mu``
@@ -440,8 +584,13 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
     estimated distance to the solution below ``STEP_TOL_FACTOR * tol`` (both in units of
     h). The plain step underestimates that distance by the ratio of stretching to bending
     stiffness; the Newton step does not. The estimate is the last step's length ``|s_k|``,
-    or ``|s_k| theta / (1 - theta)`` with the contraction ``theta = |s_k| / |s_k-1|`` of
-    two full steps when that is smaller (the bound of a sequence contracting by ``theta``).
+    or ``|s_k| theta / (1 - theta)`` when that is smaller (the bound of a sequence contracting
+    by ``theta``), with ``theta`` the larger of the last two contractions ``|s_k| / |s_k-1|``
+    of full steps: one small step after a large one (a buckled sheet settling) is not yet a
+    contraction (the 10^6-cell corrugation had stopped on a 0.45 um step, estimated 2 nm, where
+    the tolerance asked 0.14 um), and with CG's forcing loosened near the end
+    (:data:`CG_TARGET_MARGIN`) the last contraction alone fell short of the distance by 9x on
+    the stopping study's dome (``gdfe study stopping``).
     Steps are measured without their rigid part (:func:`deformation`): a turn of the whole
     part by round-off is not a distance from the solution. A solve converges when both
     tests hold, also at its last iteration.
@@ -472,6 +621,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
     it = cg = 0
     stalled = False
     error = prev = np.inf  # estimated distance to the solution; last full step, in units of h
+    last_theta = 0.0  # the contraction of the last two full steps (0: none yet)
     drift, stop_drift = None, False
     anchor = (0, E, np.inf, V.copy())  # iteration, energy, estimate and shape a drift is measured from
     # with a multigrid, the plain step's exact solve is made only where the test could pass
@@ -503,11 +653,12 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
         grad = 2.0 * (steps.L @ V - plain.b)
         if contact is None:
             grad[steps.pin] = 0.0
-            direction = directions(Q, S, grad, res)
+            direction = directions(Q, S, grad, res, error=error, target=STEP_TOL_FACTOR * tol)
         else:
             grad += gB
             grad[steps.pin] = 0.0
-            direction = directions(Q, S, grad, res, extra=contact.hessian(state, project=res > CONTACT_EXACT_RES))
+            direction = directions(Q, S, grad, res, extra=contact.hessian(state, project=res > CONTACT_EXACT_RES),
+                                   error=error, target=STEP_TOL_FACTOR * tol)
         steps.timings["newton"] = steps.timings.get("newton", 0.0) + time.perf_counter() - t0
         for _ in range(20):
             t0 = time.perf_counter()
@@ -540,11 +691,12 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
                 error = moved
                 if taken == 1.0:
                     theta = moved / prev  # 0 after a first full step: no estimate yet
-                    if 0.0 < theta < 1.0:
-                        error = min(moved, moved * theta / (1.0 - theta))
-                    prev = moved
+                    rate = max(theta, last_theta)
+                    if 0.0 < theta and rate < 1.0:
+                        error = min(moved, moved * rate / (1.0 - rate))
+                    prev, last_theta = moved, theta
                 else:
-                    prev = np.inf
+                    prev, last_theta = np.inf, 0.0
                 # a step cut short by collision detection, not by the energy, keeps the damping
                 full = taken == 1.0 or (contact is not None and taken == trials[0])
                 mu = max(mu / 4.0, MU_MIN) if full else 2.0 * mu
@@ -555,7 +707,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
                 V = G if G is not None else steps.assemble(Q, Vp, activation).V
                 o = steps.orient(V, activation)
                 Q, E, S = o.Q, o.energy, o.S
-                error, prev = res, np.inf
+                error, prev, last_theta = res, np.inf, 0.0
             else:  # the plain step with the contact forces held, cut by collision detection
                 target = V + move
                 amax = contact.max_step(V, target, state)
@@ -565,7 +717,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
                     if trial.energy + trial_state.energy < E:
                         V, Q, S, state = Vt, trial.Q, trial.S, trial_state
                         E = trial.energy + trial_state.energy
-                        error, prev = res, np.inf
+                        error, prev, last_theta = res, np.inf, 0.0
                         break
                 else:
                     stalled = True
