@@ -4,7 +4,7 @@ A design's mesh takes about :data:`MESH_BYTES_PER_CELL` per cell; a simulation's
 grows by about :data:`SOLVE_BYTES_PER_CELL` per cell over a base of :data:`BASE_BYTES`, plus
 the frames it keeps; its time per frame follows a power law in the cell count
 (:data:`SECONDS_AT`, :data:`TIME_EXPONENTS`). The constants are fitted to the benchmark's
-measurements on 2 cores (``gdfe bench``; its last results and the stopped 10^6-cell run are in
+measurements on 2 cores (``gdfe bench``; its last results, 10^3 to 10^6 cells, are in
 ``docs/bench/bench.txt`` and the README): they are estimates, good to a factor of 2-3
 (thin cells, ``nz`` large, converge more slowly), meant to decide before a run whether it
 fits the machine and whether it is long enough to ask first.
@@ -30,12 +30,12 @@ MESH_BYTES_PER_CELL = 600
 #: Peak memory of a solve: a base (the interpreter, numpy, scipy) and bytes per cell (the
 #: factorised systems, the Hessian, the batched SVDs), fitted to the benchmark's peak memory.
 BASE_BYTES = 100 * 2**20
-SOLVE_BYTES_PER_CELL = 11_000
+SOLVE_BYTES_PER_CELL = 9_500
 #: Seconds of one frame at 10^4 cells, and the exponent of the time against the cell count below
-#: and above 10^5 cells, fitted to the benchmark's sheets (the measurements: docs/bench/bench.txt;
-#: the 10^6-cell run that did not finish: the README, "Large designs and speed").
-SECONDS_AT = (1e4, 4.2)
-TIME_EXPONENTS = ((1e5, 1.24), (float("inf"), 1.8))
+#: and above 10^5 cells, fitted to the benchmark's corrugated sheets (docs/bench/bench.txt; its
+#: Figure 8 twist takes 2.3 times the corrugation's time at 10^5 cells).
+SECONDS_AT = (1e4, 1.65)
+TIME_EXPONENTS = ((1e5, 1.15), (float("inf"), 1.83))
 #: Seconds every frame costs whatever its size (set-up, the penetration check, Python).
 FRAME_OVERHEAD_SECONDS = 0.02
 #: A run estimated to take longer than this, or more than this fraction of the machine's memory,

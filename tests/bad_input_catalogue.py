@@ -284,7 +284,7 @@ def catalogue():
         cli("CLI hinge arguments", f"--R {v!r}", ["hinge", "-L", "1", "--R", v], r"\bR\b")
     for opt, vals, names in (("--isotropy", ["nan", "-0.1", "1.5", "abc"], "isotropy"),
                              ("--cells", ["0", "-3", "1.5", "abc", "1000000", "1"], "cells"),
-                             ("--nz", ["0", "-1", "1.5", "1000"], r"nz|large"),
+                             ("--nz", ["0", "-1", "1.5", "2000"], r"nz|large"),
                              ("--steps", ["0", "-1", "2.5", "100000"], r"steps|large"),
                              ("--tol", ["0", "-1", "nan", "0.1", "1", "abc"], "tol"),
                              ("--max-iter", ["0", "-5", "x"], r"max.iter"),

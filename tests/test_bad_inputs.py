@@ -216,7 +216,7 @@ def test_nan_thickness_in_folding_tests_is_named():
 
 # -- silent and slow ------------------------------------------------------------------------------
 @pytest.mark.parametrize("argv, match", [
-    (["--nz", "1000"], r"this run is large: 384,000 cells: about .* of memory \(this machine has .*\); pass --large"),
+    (["--nz", "2000"], r"this run is large: 768,000 cells: about .* of memory \(this machine has .*\); pass --large"),
     (["--steps", "100000"], r"this run is large: 384 cells x 100000 frames: about .*; pass --large"),
 ])
 def test_large_runs_get_an_estimate_and_need_large(capsys, argv, match):
@@ -227,7 +227,7 @@ def test_a_million_cell_layout_gets_an_estimate(tmp_path, capsys):
     rows = ", ".join(['"' + "RT" * 500 + '"'] * 1000)
     path = _toml(tmp_path, f"[film]\nR = 0.7\n[layout]\npixel = 0.1\nrows = [{rows}]\n")
     _error(capsys, ["simulate", str(path), "--out", str(tmp_path / "o")],
-           r"this run is large: 1,000,000 cells: about [0-9.]+ h and [0-9.]+ GiB of memory")
+           r"this run is large: 1,000,000 cells: about [0-9.]+ (min|h) and [0-9.]+ GiB of memory")
     assert not (tmp_path / "o").exists()
 
 
