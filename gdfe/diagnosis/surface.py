@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from gdfe._triangles import Triangles
 from gdfe._validation import check_array, check_instance, check_int
 from gdfe.design import Design
 
@@ -78,16 +79,7 @@ class Surface:
         # four triangles per face, fanned around its centre, (4f, 3) each, with what a query needs
         c = self.P.mean(axis=1, keepdims=True)
         tri = np.concatenate([np.concatenate([self.P[:, [i, (i + 1) % 4]], c], axis=1) for i in range(4)])
-        self._a = tri[:, 0]
-        self._ab = tri[:, 1] - tri[:, 0]
-        self._ac = tri[:, 2] - tri[:, 0]
-        self._bc = tri[:, 2] - tri[:, 1]
-        d00 = np.einsum("ij,ij->i", self._ab, self._ab)
-        d01 = np.einsum("ij,ij->i", self._ab, self._ac)
-        d11 = np.einsum("ij,ij->i", self._ac, self._ac)
-        self._d = np.stack([d00, d01, d11, np.einsum("ij,ij->i", self._bc, self._bc)], 1)
-        den = d00 * d11 - d01**2
-        self._den = np.where(den > 0, den, np.inf)  # degenerate triangles: edges only
+        self._tri = Triangles(tri[:, 0], tri[:, 1], tri[:, 2])
         self._nf = len(self.P)
 
     def closest(self, X, k=4):
@@ -111,29 +103,5 @@ class Surface:
         _, nn = self.tree.query(X, k=k)
         F = self.sample_face[nn.reshape(len(X), -1)]
         T = np.concatenate([F + i * self._nf for i in range(4)], axis=1)  # (q, 4k) candidates
-        p = X[:, None, :]
-        a, ab, ac, bc = self._a[T], self._ab[T], self._ac[T], self._bc[T]
-        d00, d01, d11, dbc = (self._d[T, i] for i in range(4))
-        ap = p - a
-        d20 = np.einsum("qkc,qkc->qk", ap, ab)
-        d21 = np.einsum("qkc,qkc->qk", ap, ac)
-        den = self._den[T]
-        v = (d11 * d20 - d01 * d21) / den
-        w = (d00 * d21 - d01 * d20) / den
-        inside = (v >= 0) & (w >= 0) & (v + w <= 1)
-        # clamped projections onto the three edges
-        tab = np.clip(d20 / np.where(d00 > 0, d00, 1.0), 0, 1)
-        tac = np.clip(d21 / np.where(d11 > 0, d11, 1.0), 0, 1)
-        tbc = np.clip(np.einsum("qkc,qkc->qk", ap - ab, bc) / np.where(dbc > 0, dbc, 1.0), 0, 1)
-        cands = np.stack([a + v[..., None] * ab + w[..., None] * ac, a + tab[..., None] * ab,
-                          a + tac[..., None] * ac, a + ab + tbc[..., None] * bc])  # (4, q, 4k, 3)
-        diff = cands - p
-        dist2 = np.einsum("sqkc,sqkc->sqk", diff, diff)
-        dist2[0] = np.where(inside, dist2[0], np.inf)
-        s_best = np.argmin(dist2, axis=0)  # (q, 4k)
-        d2 = np.take_along_axis(dist2, s_best[None], 0)[0]
-        j = np.argmin(d2, axis=1)
-        rows = np.arange(len(X))
-        C = cands[s_best[rows, j], rows, j]
-        face = T[rows, j] % self._nf
-        return C, np.sqrt(d2[rows, j]), self.owner[face]
+        C, dist, t, _ = self._tri.closest(X, T)
+        return C, dist, self.owner[t % self._nf]

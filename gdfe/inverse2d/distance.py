@@ -23,6 +23,7 @@ import dataclasses
 
 import numpy as np
 
+from gdfe._triangles import Triangles
 from gdfe._validation import GdfeError, check_array
 from gdfe.measure import rigid_align
 
@@ -55,14 +56,7 @@ class TriangleSurface:
         pts = np.einsum("sj,tjc->tsc", bary, np.stack([a, b, c], axis=1)).reshape(-1, 3)
         self.sample_triangle = np.repeat(np.arange(len(T)), len(bary))
         self.tree = cKDTree(pts)
-        self._a, self._ab, self._ac = a, b - a, c - a
-        self._bc = c - b
-        d00 = np.einsum("ij,ij->i", self._ab, self._ab)
-        d01 = np.einsum("ij,ij->i", self._ab, self._ac)
-        d11 = np.einsum("ij,ij->i", self._ac, self._ac)
-        self._d = np.stack([d00, d01, d11, np.einsum("ij,ij->i", self._bc, self._bc)], 1)
-        den = d00 * d11 - d01**2
-        self._den = np.where(den > 0, den, np.inf)
+        self._tri = Triangles(a, b, c)
 
     def closest(self, X, k=6):
         """Closest points of ``X`` ``(q, 3)`` [mm] on the surface.
@@ -78,35 +72,7 @@ class TriangleSurface:
         X = np.asarray(X, float)
         k = min(int(k), len(self.sample_triangle))
         _, nn = self.tree.query(X, k=k)
-        T = self.sample_triangle[nn.reshape(len(X), -1)]
-        p = X[:, None, :]
-        a, ab, ac, bc = self._a[T], self._ab[T], self._ac[T], self._bc[T]
-        d00, d01, d11, dbc = (self._d[T, i] for i in range(4))
-        ap = p - a
-        d20 = np.einsum("qkc,qkc->qk", ap, ab)
-        d21 = np.einsum("qkc,qkc->qk", ap, ac)
-        den = self._den[T]
-        v = (d11 * d20 - d01 * d21) / den
-        w = (d00 * d21 - d01 * d20) / den
-        inside = (v >= 0) & (w >= 0) & (v + w <= 1)
-        tab = np.clip(d20 / np.where(d00 > 0, d00, 1.0), 0, 1)
-        tac = np.clip(d21 / np.where(d11 > 0, d11, 1.0), 0, 1)
-        tbc = np.clip(np.einsum("qkc,qkc->qk", ap - ab, bc) / np.where(dbc > 0, dbc, 1.0), 0, 1)
-        # barycentric (of b, c) of the four candidates: inside, on ab, on ac, on bc
-        vv = np.stack([np.where(inside, v, 0.0), tab, np.zeros_like(tab), 1.0 - tbc])
-        ww = np.stack([np.where(inside, w, 0.0), np.zeros_like(tab), tac, tbc])
-        cands = a[None] + vv[..., None] * ab[None] + ww[..., None] * ac[None]
-        diff = cands - p[None]
-        dist2 = np.einsum("sqkc,sqkc->sqk", diff, diff)
-        dist2[0] = np.where(inside, dist2[0], np.inf)
-        s_best = np.argmin(dist2, axis=0)
-        d2 = np.take_along_axis(dist2, s_best[None], 0)[0]
-        j = np.argmin(d2, axis=1)
-        rows = np.arange(len(X))
-        s = s_best[rows, j]
-        C = cands[s, rows, j]
-        vb, wb = vv[s, rows, j], ww[s, rows, j]
-        return C, np.sqrt(d2[rows, j]), T[rows, j], np.column_stack([1.0 - vb - wb, vb, wb])
+        return self._tri.closest(X, self.sample_triangle[nn.reshape(len(X), -1)])
 
 
 def patch(target, sigma, film_size, spacing, film_mask=None):
