@@ -146,10 +146,17 @@ def check_length(name, value, allow_array=True):
     return arr
 
 
+#: The smallest contraction ratio a design may have: a film shrunk to 1 % of its length is far
+#: beyond any shrink film, and much below it the folded part's geometry degenerates (at
+#: R = 1e-9 its cells are 1e-10 mm across and the contact solve's collision detection does
+#: not return).
+R_MIN = 0.01
+RATIO_WHAT = f"a contraction ratio in [{R_MIN:g}, 1]"
+
+
 def check_ratio(name, value):
-    """A contraction ratio (or array of them): finite and in (0, 1]."""
-    return check_number(name, value, minimum=0.0, maximum=1.0, include_minimum=False,
-                        what="a contraction ratio in (0, 1]", allow_array=True)
+    """A contraction ratio (or array of them): finite and in [:data:`R_MIN`, 1]."""
+    return check_number(name, value, minimum=R_MIN, maximum=1.0, what=RATIO_WHAT, allow_array=True)
 
 
 def check_poisson(name, value):

@@ -21,7 +21,7 @@ import numpy as np
 from gdfe._images import read_mask
 from gdfe._validation import (GdfeError, GdfeTypeError, check_choice, check_file, check_int, check_keys,
                               check_positive, check_length, check_number, check_ratio, describe,
-                              read_text)
+                              read_text, R_MIN, RATIO_WHAT)
 from gdfe.calibration import DEFAULT_H, PAPER_K
 from gdfe.material import LAYOUT_CHARS, Material
 from gdfe.mesh import DEFAULT_NZ, HexMesh, sheet_mesh
@@ -575,7 +575,7 @@ def load_design(path, model=None, process=None):
     where = f"{name}: [film]"
     h = _entry(f"{where} h", film.get("h", DEFAULT_H), check_length)
     R = None if "R" not in film else _entry(f"{where} R", film["R"], lambda n, v: check_number(
-        n, v, minimum=0.0, maximum=1.0, include_minimum=False, what="a contraction ratio in (0, 1]"))
+        n, v, minimum=R_MIN, maximum=1.0, what=RATIO_WHAT))
     d = None if "d" not in film else _entry(f"{where} d", film["d"], check_length)
     nz = check_int(f"{where} nz", film.get("nz", DEFAULT_NZ))
     iso = _entry(f"{where} isotropy", film.get("isotropy", 1.0), lambda n, v: check_number(

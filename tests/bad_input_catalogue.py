@@ -89,9 +89,10 @@ class Case:
 
 
 @contextlib.contextmanager
-def _deadline(seconds):
+def deadline(seconds):
+    """Raise :class:`Hang` in this thread when the block runs longer than ``seconds``."""
     def ring(signum, frame):
-        raise Hang()
+        raise Hang(f"ran over {seconds} s")
 
     old = signal.signal(signal.SIGALRM, ring)
     signal.alarm(seconds)
@@ -124,7 +125,7 @@ def run_case(case, tmp, seconds=HANG_SECONDS):
     root = logging.getLogger()
     root.addHandler(warn)
     try:
-        with _deadline(seconds):
+        with deadline(seconds):
             if case.entry == "CLI":
                 argv = case.call(tmp)
                 out, err = io.StringIO(), io.StringIO()
@@ -228,12 +229,7 @@ def make_files(tmp):
 
 
 def _csv(tmp, text, name="t.csv", raw=None):
-    p = Path(tmp) / name
-    if raw is not None:
-        p.write_bytes(raw)
-    else:
-        p.write_text(text)
-    return str(p)
+    return _file(tmp, name, text, raw)
 
 
 def _file(tmp, name, text=None, raw=None):

@@ -61,11 +61,11 @@ def test_loose_tol_in_a_design_file_is_refused(tmp_path, capsys):
     (HINGE + "[simulte]\nsteps = 2\n",
      r"d\.toml: unknown section \[simulte\] \(did you mean \[simulate\]\?\); expected some of \[film\]"),
     ("[film]\nh = 0.29\nR = \"0.7\"\n[hinge]\nlength = 1\n",
-     r"d\.toml: \[film\] R: expected a contraction ratio in \(0, 1\], got '0\.7'"),
+     r"d\.toml: \[film\] R: expected a contraction ratio in \[0\.01, 1\], got '0\.7'"),
     ("[film]\nh = \"0.29\"\nR = 0.7\n[hinge]\nlength = 1\n",
      r"d\.toml: \[film\] h: expected a positive finite number, got '0\.29'"),
     ("[film]\nh = 0.29\nR = true\n[hinge]\nlength = 1\n",
-     r"d\.toml: \[film\] R: expected a contraction ratio in \(0, 1\], got True"),
+     r"d\.toml: \[film\] R: expected a contraction ratio in \[0\.01, 1\], got True"),
     ("[film]\nh = 0.29\nR = 0.7\nnz = true\n[hinge]\nlength = 1\n",
      r"d\.toml: \[film\] nz: expected an integer >= 1, got True"),
     ("R = 0.7\n[film]\nh = 0.29\n[hinge]\nlength = 1\n",
@@ -123,7 +123,7 @@ def test_fem_hinge_refuses_an_expanding_film(capsys):
 
 
 def test_angle_from_ratio_checks_the_ratio():
-    with pytest.raises(ValueError, match=r"R: expected a contraction ratio in \(0, 1\], got 1\.5"):
+    with pytest.raises(ValueError, match=r"R: expected a contraction ratio in \[0\.01, 1\], got 1\.5"):
         gdfe.angle_from_ratio(1.5, 1.0)
     with pytest.raises(ValueError, match=r"alpha: expected a fold angle in \[0, L/h\)"):
         gdfe.ratio_from_angle(10.0, 1.0)
@@ -413,7 +413,7 @@ def test_library_arguments_found_by_the_catalogue():
         gdfe.hinge(1.0, d=0.33, process={"T_C": math.nan})
     with pytest.raises(TypeError, match=r"^length: expected a positive finite number, got \[1\.0\]"):
         gdfe.hinge([1.0], d=0.33)
-    with pytest.raises(TypeError, match=r"^R: expected a contraction ratio in \(0, 1\], got True"):
+    with pytest.raises(TypeError, match=r"^R: expected a contraction ratio in \[0\.01, 1\], got True"):
         gdfe.from_masks(np.zeros((2, 2), bool), np.ones((2, 2), bool), 0.1, R=True)
     with pytest.raises(gdfe.GdfeError, match=r"^a: expected finite numbers, got nan at \[0, 0\]"):
         gdfe.shape_distance(np.full((4, 3), np.nan), np.zeros((4, 3)))

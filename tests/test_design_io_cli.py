@@ -57,8 +57,8 @@ def test_masks_from_arrays_and_png(tmp_path):
 @pytest.mark.parametrize("kwargs, match", [
     (dict(length=-1.0, d=0.33), "length: expected a positive"),
     (dict(length=1.0), "give the passive thickness d"),
-    (dict(length=1.0, R=1.5), r"R: expected a contraction ratio in \(0, 1\]"),
-    (dict(length=1.0, R=0.0), r"R: expected a contraction ratio in \(0, 1\]"),
+    (dict(length=1.0, R=1.5), r"R: expected a contraction ratio in \[0\.01, 1\]"),
+    (dict(length=1.0, R=0.0), r"R: expected a contraction ratio in \[0\.01, 1\]"),
     (dict(length=1.0, R=0.8, width=0.0), "width: expected a positive"),
     (dict(length=1.0, R=0.8, face="left"), "face: expected one of 'top', 'bottom', got 'left'"),
     (dict(length=1.0, R=0.8, isotropy=2.0), r"isotropy: expected a number in \[0, 1\]"),

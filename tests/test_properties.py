@@ -14,7 +14,7 @@ test marked slow reruns every property with the "long" profile (400 examples eac
 kept small by their strategies (a few cells to a few hundred) and every command line runs with
 :data:`gdfe.resources.LARGE_SECONDS` lowered, so the solver's own estimate refuses any run that
 would take more than a few seconds (``--large`` is never drawn); a run past
-:data:`HANG_SECONDS` fails the property as a hang.
+:data:`HANG_SECONDS` fails the property as a hang (``bad_input_catalogue.Hang``).
 """
 
 from __future__ import annotations
@@ -23,11 +23,10 @@ import io
 import json
 import math
 import os
-import signal
 import string
 import subprocess
 import sys
-from contextlib import contextmanager, redirect_stderr, redirect_stdout
+from contextlib import redirect_stderr, redirect_stdout
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +37,7 @@ from hypothesis import strategies as st
 import gdfe
 from gdfe.cli._main import build_parser
 from gdfe.design import DESIGN_KEYS
+from bad_input_catalogue import deadline  # a module of tests/, which pytest puts on the path
 
 #: Seconds one example may take before it counts as a hang (far above what the strategies make).
 HANG_SECONDS = 60
@@ -45,28 +45,9 @@ HANG_SECONDS = 60
 SIMULATE_CELLS = 150
 
 
-class Hang(Exception):
-    """An example ran past :data:`HANG_SECONDS`."""
-
-
-@contextmanager
-def _deadline(seconds=HANG_SECONDS):
-    """Raise :class:`Hang` in the test's thread when the block runs longer than ``seconds``."""
-    def ring(signum, frame):
-        raise Hang(f"ran over {seconds} s")
-
-    old = signal.signal(signal.SIGALRM, ring)
-    signal.alarm(seconds)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, old)
-
-
 def _api(fn, *args, **kwargs):
     """``fn(*args, **kwargs)``, or the :class:`gdfe.GdfeError` it raised (any other exception fails)."""
-    with _deadline():
+    with deadline(HANG_SECONDS):
         try:
             return fn(*args, **kwargs)
         except gdfe.GdfeError as exc:
@@ -607,7 +588,7 @@ def _cli(capsys, argv):
     from gdfe.cli import main
 
     note(f"argv: {argv}")
-    with _deadline():
+    with deadline(HANG_SECONDS):
         try:
             try:
                 rc = main(argv)

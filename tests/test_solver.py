@@ -261,3 +261,22 @@ def test_newton_cg_products_and_coarse_matrix_match_the_assembled_hessian(turn, 
     Hc = (Z3.T @ H @ Z3).toarray()
     np.testing.assert_allclose(hs.coarse_matrix(lin, rest, mu).toarray(), Hc, rtol=0, atol=1e-12 * np.abs(Hc).max())
     assert hs.coarse.spacing >= 2 and Z3.shape[1] < Z3.shape[0] / 4
+
+
+def test_linearised_start_falls_back_to_the_direct_solve_when_the_coarse_matrix_is_singular(monkeypatch):
+    """A singular coarse matrix (``operator`` returns None) gives the direct start, not a TypeError."""
+    from gdfe.solver import linearised
+
+    des = gdfe.hinge(1.6, d=0.33)
+    s = Solver(des)
+    V = des.mesh.points.copy()
+    direct = linearised.linearised_start_direct(s, V, 1.0)
+    monkeypatch.setattr(type(s.reduced_hessian), "operator", lambda self, *a, **k: None)
+    np.testing.assert_allclose(linearised.linearised_start_cg(s, s.reduced_hessian, V, 1.0), direct)
+
+
+def test_contraction_ratios_below_one_percent_are_refused():
+    """R = 1e-9 shrank cells to 1e-10 mm, where the contact solve's collision detection did not return."""
+    with pytest.raises(gdfe.GdfeError, match=r"^R: expected a contraction ratio in \[0\.01, 1\], got 1e-09"):
+        gdfe.from_masks(np.zeros((5, 3), bool), np.zeros((5, 3), bool), 0.2, R=1e-9)
+    assert gdfe.from_masks(np.zeros((5, 3), bool), np.zeros((5, 3), bool), 0.2, R=0.01).n_cells == 15

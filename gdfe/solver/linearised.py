@@ -114,7 +114,12 @@ def linearised_start_cg(steps, hessian, V, activation=1.0, rtol=1e-6, max_iter=5
     eye = np.broadcast_to(np.eye(3), (m, 3, 3))
     C = np.einsum("mki,mkj->mij", P, P)
     lin = hessian.linearise(eye, C, rest, floor=1.0)
-    apply_H, apply_P = hessian.operator(lin, rest, 0.0)
+    ops = hessian.operator(lin, rest, 0.0)
+    if ops is None:  # the coarse matrix is singular (rest shapes shrunk to almost nothing)
+        log.info("linearised start: the coarse matrix is singular; solving the joint system directly")
+        steps.timings["newton"] = steps.timings.get("newton", 0.0) + time.perf_counter() - t0
+        return linearised_start_direct(steps, V, activation)
+    apply_H, apply_P = ops
     b = steps.B @ P.reshape(-1, 3)
     grad = apply_H(V) - 2.0 * b  # 2 (L V - b) - 2 J^T J V; zero at the pinned vertex
     grad[steps.pin] = 0.0
