@@ -59,7 +59,7 @@ class Design:
     material : (m,) int array
         :class:`Material` code of each cell.
     R : (m,) float array
-        Contraction ratio of each cell's free face(s), in (0, 1]; ignored for rigid cells.
+        Contraction ratio of each cell's free face(s), in [0.01, 1] (``gdfe._validation.R_MIN``); ignored for rigid cells.
     h : float [mm]
         Active-film thickness.
     isotropy : float
@@ -219,7 +219,7 @@ def grid_design(material2d, R=None, h=DEFAULT_H, pixel=0.1, nz=DEFAULT_NZ, isotr
     material2d : (nx, ny) int array
         :class:`Material` code of each in-plane cell; column ``i`` runs along x, row ``j`` along y.
     R : float or (nx, ny) float array, optional
-        Contraction ratio of the free faces, in (0, 1]; without it, from ``model`` and ``d``.
+        Contraction ratio of the free faces, in [0.01, 1]; without it, from ``model`` and ``d``.
     h : float [mm]
         Film thickness.
     pixel : float or (2,) float [mm]
