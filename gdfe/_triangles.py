@@ -30,9 +30,6 @@ class Triangles:
         den = d00 * d11 - d01**2
         self.den = np.where(den > 0, den, np.inf)
 
-    def __len__(self):
-        return len(self.a)
-
     def closest(self, X, T):
         """The closest point to each ``X[q]`` on its candidate triangles ``T[q]``.
 

@@ -61,7 +61,10 @@ def _float_array(name, value, kind="a number"):
     """``value`` as a float array; strings, booleans and None are not numbers."""
     if value is None or isinstance(value, (str, bytes, bool, np.bool_)):
         raise GdfeTypeError(f"{name}: expected {kind}, got {describe(value)}")
-    arr = np.asarray(value)
+    try:
+        arr = np.asarray(value)
+    except ValueError:  # a ragged nesting of sequences
+        raise GdfeTypeError(f"{name}: expected {kind}, got a ragged sequence {describe(value)}") from None
     if arr.dtype == bool or arr.dtype.kind in "OUSV":
         if arr.dtype.kind == "O":
             try:

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gdfe._validation import GdfeError, GdfeTypeError
+from gdfe._validation import GdfeError, GdfeTypeError, describe
 
 __all__ = ["write_vtu", "write_series", "render_png", "write_json", "write_text", "surface_faces", "boundary_quads",
            "atomic_path", "json_default", "save_figure", "OutputFolder", "MATERIAL_CODES", "MANIFEST", "MARKER",
@@ -37,12 +37,17 @@ def atomic_path(path):
     GdfeError
         ``path`` is empty or names a folder (no file could be renamed onto it).
     """
-    if str(path).strip() in ("", ".") or Path(path).is_dir():
+    if not isinstance(path, (str, os.PathLike)):
+        raise GdfeTypeError(f"path: expected the name of a file to write, got {describe(path)}")
+    if str(path).strip() in ("", ".") or str(path).endswith(("/", os.sep)) or Path(path).is_dir():
         raise GdfeError(f"{str(path) or repr('')}: expected the name of a file to write, got "
                         f"{'a folder' if str(path).strip() else 'an empty name'}")
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=path.suffix, dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=path.suffix, dir=path.parent)
+    except OSError as exc:  # a parent that is a file, no permission, a full disk
+        raise GdfeError(f"{path}: cannot write there ({exc.strerror or exc})") from None
     os.close(fd)
     try:
         yield Path(tmp)
@@ -340,8 +345,6 @@ class OutputFolder:
 
     def check(self):
         """Refuse a path that is a file, or a folder with files gdfe did not write, or one being written."""
-        from gdfe._validation import GdfeError
-
         state = folder_state(self.path)
         if state == "file":
             raise GdfeError(f"{self.name}: expected a folder, got the file {self.path}")
@@ -378,8 +381,6 @@ class OutputFolder:
             self.path.mkdir(parents=True, exist_ok=True)
             self._write_marker("running")
         except OSError as exc:
-            from gdfe._validation import GdfeError
-
             raise GdfeError(f"{self.name}: cannot create the folder {self.path}: {exc.strerror or exc}") from None
         return self
 

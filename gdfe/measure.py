@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from gdfe._validation import GdfeError, GdfeTypeError, check_array, check_number
+from gdfe._validation import GdfeError, GdfeTypeError, check_array, check_number, describe
 
 __all__ = ["fold_angle", "curvature_profile", "rigid_align", "shape_distance", "column_frames", "panel_angles"]
 
@@ -30,7 +30,12 @@ def rigid_align(source, target, weights=None):
     if source.shape != target.shape:
         raise GdfeError(f"source, target: expected two (n, 3) arrays of the same shape, "
                          f"got {source.shape} and {target.shape}")
-    w = np.ones(len(source)) if weights is None else np.asarray(weights, float)
+    if weights is None:
+        w = np.ones(len(source))
+    else:
+        w = check_array("weights", weights, shape=(len(source),))
+        if (w < 0).any() or not w.sum() > 0:
+            raise GdfeError(f"weights: expected non-negative weights with a positive sum, got {describe(w)}")
     w = w / w.sum()
     cs, ct = w @ source, w @ target
     H = ((source - cs) * w[:, None]).T @ (target - ct)
@@ -194,12 +199,9 @@ def curvature_profile(result, design=None, cells=None, axis=(0.0, -1.0, 0.0)):
 def _points_design(result, design):
     if hasattr(result, "points") and hasattr(result, "design"):
         return result.points, result.design
-    if result is None or isinstance(result, (str, bytes, bool, dict)) or np.ndim(result) != 2:
-        raise GdfeTypeError(f"result: expected a gdfe.Result (or an (n, 3) array of points with its design), "
-                            f"got {type(result).__name__}")
+    pts = check_array("result", result, shape=(-1, 3))  # not a Result: points, which need their design
     if design is None:
         raise GdfeTypeError("design: needed when result is an array of points")
-    pts = check_array("result", result, shape=(-1, 3))
     if pts.shape != design.mesh.points.shape:
         raise GdfeError(f"result: expected points of shape {design.mesh.points.shape}, got {pts.shape}")
     return pts, design

@@ -30,6 +30,7 @@ import functools
 import numpy as np
 import scipy.sparse as sp
 
+from gdfe.mesh import _HEX_OFFSETS
 from gdfe.solver.linalg import factorise
 
 __all__ = ["MULTIGRID_CELLS", "MG_COARSEST", "MG_SMOOTHING", "MG_ASPECT", "lattice", "prolongation", "Multigrid"]
@@ -49,9 +50,6 @@ MG_SMOOTHING = 1
 #: times its layer spacing (lattice units): semi-coarsening keeps the levels near isotropic.
 MG_ASPECT = 2
 
-
-#: Lattice offsets of a hexahedron's eight vertices, VTK order.
-_HEX_OFFSETS = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]])
 
 
 def lattice(mesh):

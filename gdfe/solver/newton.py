@@ -340,7 +340,7 @@ class ReducedHessian:
         except RuntimeError:  # SuperLU: exactly singular
             return None
 
-    def operator(self, lin, rest, mu, extra=None, coarse_factor=None):
+    def operator(self, lin, rest, mu, extra=None, coarse_factor=None, J=None):
         """Hessian product and preconditioner at ``lin`` with damping ``mu``.
 
         The preconditioner combines the exact inverse of the (scaled) n x n system for
@@ -351,7 +351,8 @@ class ReducedHessian:
 
         ``extra`` (3n x 3n, vertex-major, positive semi-definite; the contact barrier's
         Hessian) is added to the Hessian and to the coarse matrix. ``coarse_factor``, one
-        made earlier (:meth:`coarse_factor`), is used instead of making one.
+        made earlier (:meth:`coarse_factor`), is used instead of making one; ``J``, made
+        earlier (:meth:`jacobian` at ``lin``), likewise.
 
         Returns
         -------
@@ -365,7 +366,7 @@ class ReducedHessian:
         fc = self.coarse_factor(lin, rest, mu, extra) if coarse_factor is None else coarse_factor
         if fc is None:
             return None
-        J = self.jacobian(lin, rest)
+        J = self.jacobian(lin, rest) if J is None else J
         Jt = J.T
         pin, free, L, fine_solve = steps.pin, steps.free, steps.L, steps.approx_solve_free
         scale = 2.0 * (1.0 + mu)
@@ -483,13 +484,15 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200):
         rtol = cg_rtol if cg_rtol is not None else min(CG_RTOL_MAX, max(CG_RTOL_MIN, np.sqrt(res)))
         if cg_rtol is None and target > 0.0 and np.isfinite(error):
             rtol = min(CG_RTOL_MAX, max(rtol, CG_TARGET_MARGIN * target / error))
-        tries = [extra is None and error <= COARSE_REUSE]  # only a first try may reuse the last factor
+        may_reuse = extra is None and error <= COARSE_REUSE  # only a first try may reuse the last factor
+        J = hessian.jacobian(lin, rest)  # the same for every damping tried at this iterate
 
         def step(mu):
+            nonlocal may_reuse
             # the damping enters the coarse matrix as the factor 1 + max(mu, MU_MIN) of its L part
             same = "mu" in kept and abs(max(mu, MU_MIN) - max(kept["mu"], MU_MIN)) <= COARSE_REUSE_DAMPING
-            fc = kept["factor"] if tries[-1] and same else None
-            tries.append(False)
+            fc = kept["factor"] if may_reuse and same else None
+            may_reuse = False
             if fc is None:
                 fc = hessian.coarse_factor(lin, rest, mu, extra)
                 if fc is None:
@@ -497,7 +500,7 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200):
                 kept.clear()
                 if extra is None:
                     kept.update(factor=fc, mu=mu)
-            ops = hessian.operator(lin, rest, mu, extra, coarse_factor=fc)
+            ops = hessian.operator(lin, rest, mu, extra, coarse_factor=fc, J=J)
             x, k = pcg(*ops, -grad, rtol, cg_max)
             log.debug("CG: %d iterations to %.1e", k, rtol)
             return x, k

@@ -467,6 +467,10 @@ class _Triangles:
             for b, (ib, tb, rb) in enumerate(self.classes):
                 if b < a:
                     continue
+                if a == b and ia.size <= _CHUNK:  # one class in one chunk: each pair once from its own tree
+                    uv = ta.query_pairs(ra + rb, output_type="ndarray").astype(np.int64)
+                    yield ia[uv[:, 0]], ia[uv[:, 1]]
+                    continue
                 for s in range(0, ia.size, _CHUNK):
                     u, v = _pairs(cKDTree(ta.data[s:s + _CHUNK]), tb, ra + rb)
                     u += s
