@@ -564,10 +564,7 @@ def load_design(path, model=None, process=None):
     except tomllib.TOMLDecodeError as exc:
         raise GdfeError(f"{name}: not valid TOML: {exc}") from None
     _check_sections(name, doc)
-    proc = doc.get("process", {})
-    for k, v in proc.items():
-        if isinstance(v, bool) or not isinstance(v, (int, float, str)) or (isinstance(v, float) and not np.isfinite(v)):
-            raise GdfeError(f"{name}: [process] {k}: expected a finite number or a text label, got {describe(v)}")
+    proc = check_process(f"{name}: [process]", doc.get("process", {}))
     proc = {**proc, **(process or {})}
     if "film" not in doc:
         raise GdfeError(f"{name}: missing [film] table (h, and R or d)")

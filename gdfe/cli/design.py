@@ -78,7 +78,7 @@ def register(sub):
                    help="dome, saddle, cylinder, twist, or a triangle mesh (.obj, .stl, .ply) [mm]")
     g.add_argument("--size", type=float, help="film size [mm]: the square film's side, the twist's length, the "
                                               "largest side of a mesh's flattened outline")
-    g.add_argument("--model", help="deformation model file (default the paper's Eq. 3)")
+    g.add_argument("--model", type=file_path, help="deformation model file (default the paper's Eq. 3)")
     g.add_argument("--iterations", type=int,
                    help=f"L-BFGS-B iterations (default {DEFAULT_ITERATIONS}; 0: the placement's estimate only)")
     g.add_argument("--radius", type=float, help="dome, saddle, cylinder: radius of curvature [mm] (default: the "

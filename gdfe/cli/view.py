@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from gdfe._validation import GdfeError
-from gdfe.cli._common import emit, file_path, json_arg
+from gdfe.cli._common import emit, file_path, json_arg, new_file_path
 
 __all__ = ["register", "run"]
 
@@ -16,7 +16,7 @@ def register(sub):
                                    "a self-contained HTML page: the shape in 3-D with the contraction ramp as a "
                                    "slider. No network access is needed to open it.")
     p.add_argument("result", type=file_path, help="result folder (with a .pvd series), or the .pvd file")
-    p.add_argument("--html", nargs="?", const=True, default=None, metavar="PATH", type=_html_path,
+    p.add_argument("--html", nargs="?", const=True, default=None, metavar="PATH", type=new_file_path,
                    help="write the page (default RESULT_DIR/NAME.html)")
     p.add_argument("--title", help="page title (default the series' name)")
     json_arg(p, "what was read and written")
@@ -39,15 +39,6 @@ def _series(path):
         raise GdfeError(f"result: expected one .pvd series in {path}, got "
                         f"{', '.join(p.name for p in pvds) if pvds else 'none'}; give the .pvd file")
     return pvds[0]
-
-
-def _html_path(text):
-    """``--html PATH``: a file name (not empty, not a folder's)."""
-    import argparse
-
-    if not text.strip() or text.endswith(("/", "\\")) or Path(text).is_dir():
-        raise argparse.ArgumentTypeError(f"expected the name of an HTML file, got {text!r}")
-    return text
 
 
 def run(args):
