@@ -75,8 +75,7 @@ def test_all_L_equal_never_names_hinge_length(t1, seed):
     assert diag.best.name in ("cure_depth", "film_thickening", "passive_stiffness")
     named = [f.name for f in diag.named]
     assert "cure_depth" in named and "hinge_length" not in " ".join(named)
-    if len(named) > 1:
-        assert diag.separation["input"] == "h_mm"
+    assert len(named) > 1 and diag.separation["input"] == "h_mm"
 
 
 # -- identifiability, ties, bounds --------------------------------------------------------------------

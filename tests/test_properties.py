@@ -37,7 +37,7 @@ from hypothesis import strategies as st
 import gdfe
 from gdfe.cli._main import build_parser
 from gdfe.design import DESIGN_KEYS
-from bad_input_catalogue import deadline  # a module of tests/, which pytest puts on the path
+from bad_input_catalogue import _message_lines, deadline  # a module of tests/, which pytest puts on the path
 
 #: Seconds one example may take before it counts as a hang (far above what the strategies make).
 HANG_SECONDS = 60
@@ -194,12 +194,13 @@ def _check_result(design, res):
     assert res.iterations == sum(res.frame_iterations)
     if res.converged and res.tol <= 1e-4 and not res.penetrates:  # a penetrating result is flagged (exit 4)
         # an equilibrium stays where it is: a tight Newton solve from it moves it by a small
-        # part of the film's size (1e-3 of it; the default stopping test asks 1e-6)
+        # part of the film's size (the default stopping test asks 1e-6 of it; measured at most
+        # 7.1e-7 over 300 design-file examples; 1e-5 leaves room for the estimate's factor 2-3)
         again = gdfe.simulate(design, init=res.points, method="newton", tol=1e-7,
                               contact="on" if res.contact.used else "off")
         size = float(np.linalg.norm(np.ptp(design.mesh.points, axis=0)))
         moved = gdfe.shape_distance(again.points, res.points)["max"]
-        assert moved <= 1e-3 * size, f"converged result moved {moved:.3g} mm by a tight re-solve (size {size:.3g} mm)"
+        assert moved <= 1e-5 * size, f"converged result moved {moved:.3g} mm by a tight re-solve (size {size:.3g} mm)"
     if not res.converged:
         assert res.summary()["converged"] is False
 
@@ -306,7 +307,7 @@ def test_mask_arrays(masks, R, pixel):
     if not isinstance(out, gdfe.GdfeError):
         event("from_masks: accepted")
         _check_mask_design(out, np.shape(top))
-        assert 0 < R <= 1
+        assert 0.01 <= R <= 1
         _simulate_small(out, {})
 
 
@@ -600,7 +601,7 @@ def _cli(capsys, argv):
     assert "Traceback" not in cap.err and "internal error" not in cap.err, cap.err
     assert isinstance(rc, int), rc
     if rc != 0:
-        lines = [x for x in cap.err.splitlines() if x.strip() and not x.startswith(("WARNING ", "INFO "))]
+        lines = _message_lines(cap.err)
         assert rc in (1, 2, 3, 4, 130), (rc, cap.err)
         assert lines, f"exit {rc} with nothing on standard error"
         assert len(lines) == 1 or rc in (3, 4), cap.err  # one line; 3/4 print a result, then one line
