@@ -71,6 +71,10 @@ PERTURB_MM = 2e-3
 #: Relative energy change below which a moved and solved again result counts as having come back
 #: (the solves stop at 1e-7 h, whose energy error is far below this).
 MINIMUM_REL = 1e-9
+#: Hinges whose contact result is no minimum: held there by the activation's path, moved by
+#: 2 um they go on to a lower energy (measured: the 14 mm strip with its second panel 2 mm
+#: long, 13.82 -> 13.85 rad at 2.7e-3 lower energy). Their headline records that, expected to fail.
+HELD_BY_PATH = ("14 offset",)
 #: Per resolution: the box's pixel, the tube's division, the Table 1 rows, the bisection steps of
 #: the onset, and the cost designs as (box pixel [mm] or sheet cells, repeats).
 SETTINGS = {
@@ -425,12 +429,18 @@ def run(resolution="default", out=None):
         headline("box with contact, moved by 2 um and solved again: energy change / energy (a minimum comes back, "
                  "within round-off; a state only symmetry holds goes on to a lower energy)",
                  moved["energy_change_rel"], None, -MINIMUM_REL, "ge"),
+        *(headline(f"{k} mm hinge with contact, moved by 2 um and solved again: energy change / energy (a "
+                   "minimum comes back within round-off)", v["perturbed"]["energy_change_rel"], None, -MINIMUM_REL,
+                   "ge", expect=k not in HELD_BY_PATH)
+          for k, v in hinges.items() if v["perturbed"]),
         headline("Table 1 specimens whose fold self-contact stops", len(saturating), 0, None, "eq",
                  paper_text=f"saturation diagnosed at alpha_max = {ALPHA_MAX} rad"),
         headline("smallest fold at which Table 1's specimen geometry meets itself", table["onset"]["alpha_meets_rad"],
                  None, ALPHA_MAX, "ge", unit="rad", paper_text=f"alpha_max = {ALPHA_MAX} rad"),
     ]
     converged = all(h[m]["converged"] for h in hinges.values() for m in ("free", "contact"))
+    converged &= all(h["perturbed"]["converged"] for h in hinges.values() if h["perturbed"])
+    converged &= bool(moved["converged"])
     converged &= all(c["converged"] for c in (over["on"], over["off"], box["on"], box["off"]))
     converged &= all(s["converged"] for s in table["specimens"])
     largest = max(table["specimens"], key=lambda s: s["alpha_rad"])
@@ -467,7 +477,12 @@ def run(resolution="default", out=None):
                            f"{-moved['energy_change_rel']:.1e} of itself lower"
                            if moved["energy_change_rel"] < -MINIMUM_REL else
                            "here the box's walls slid past that state on their own: moved by "
-                           f"{PERTURB_MM * 1e3:g} um they come back ({moved['energy_change_rel']:+.1e} of the energy)")),
+                           f"{PERTURB_MM * 1e3:g} um they come back ({moved['energy_change_rel']:+.1e} of the energy)")
+                        + "".join(f"; the {k} mm hinge's result is no minimum: moved by {PERTURB_MM * 1e3:g} um it "
+                                  f"goes on by {v['perturbed']['after']['alpha_rad'] - v['perturbed']['before']['alpha_rad']:+.3f} "
+                                  f"rad to an energy {-v['perturbed']['energy_change_rel']:.1e} of itself lower"
+                                  for k, v in hinges.items()
+                                  if v["perturbed"] and v["perturbed"]["energy_change_rel"] < -MINIMUM_REL)),
     }
     result = {"study": NAME, "figure": "Self-contact (issue 13)", "title": "self-contact: rolls, tubes, boxes, Table 1",
               "resolution": resolution, "h_mm": H,
