@@ -297,3 +297,12 @@ def test_inverse2d_study_coarse(tmp_path):
     assert r["timing"]["evaluations"] >= r["timing"]["iterations"] >= 1
     assert r["unreachable"]["closest"]["t"] < 1
     assert (tmp_path / "inverse2d.png").is_file() and (tmp_path / "inverse2d.json").is_file()
+
+
+def test_a_projection_that_loses_the_fold_is_named_as_the_cause():
+    """Coating fractions that reach the dome, masks in 1 mm blocks that do not: the verdict blames the projection."""
+    d = design_surface(make_target("dome", 5.0, radius=20.0), pixel=0.5, w_min=1.0, iterations=3,
+                       projection="threshold")
+    assert d.relaxed.converged and d.relaxed_distance.rms_mm <= d.tolerance_mm < d.printable_distance.rms_mm
+    assert not d.reached
+    assert "threshold projection to printable masks in blocks of 1 mm loses the fold" in d.verdict()

@@ -406,9 +406,16 @@ class SurfaceDesign:
         if self.reached:
             return (f"reached: the printed fold is within {d.rms_mm:.3g} mm RMS ({d.max_mm:.3g} mm max) of the "
                     f"target, tolerance {self.tolerance_mm:.3g} mm")
-        why = (f"the target is {self.reachability.text()}" if not self.reachability.reachable
-               else "the target is within the estimate's reach, but the fold found does not get there"
-               + (f": {self.target.note}" if self.target.note else ""))
+        rd = self.relaxed_distance
+        if self.relaxed.converged and rd.rms_mm <= self.tolerance_mm:  # the masks lost what the fractions had
+            why = (f"the relaxed design (coating fractions per pixel) reaches it ({rd.rms_mm:.3g} mm RMS), but "
+                   f"its {self.options['projection']} projection to printable masks in blocks of "
+                   f"{self.options['w_min_mm']:g} mm loses the fold: try a smaller w_min or the other projection")
+        elif not self.reachability.reachable:
+            why = f"the target is {self.reachability.text()}"
+        else:
+            why = ("the target is within the estimate's reach, but the fold found does not get there"
+                   + (f": {self.target.note}" if self.target.note else ""))
         near = ""
         if self.closest is not None:
             near = f"; the closest within reach: {self.closest['text']}"
