@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import logging
 import os
 import tempfile
@@ -270,9 +271,26 @@ def json_default(o):
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
+def finite_json(obj):
+    """``obj`` made JSON-ready: numpy scalars and arrays converted, non-finite floats as None
+    (JSON has no NaN or infinity)."""
+    obj = json.loads(json.dumps(obj, default=json_default))
+    return _finite(obj)
+
+
+def _finite(obj):
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_finite(v) for v in obj]
+    return obj
+
+
 def write_json(path, obj):
-    """Write ``obj`` as indented JSON (numpy scalars and arrays converted)."""
-    return write_text(path, json.dumps(obj, indent=2, default=json_default) + "\n")
+    """Write ``obj`` as indented JSON (:func:`finite_json`: numpy converted, NaN and infinity as null)."""
+    return write_text(path, json.dumps(finite_json(obj), indent=2) + "\n")
 
 
 #: The file an :class:`OutputFolder` writes last, listing every file of a complete output.

@@ -12,13 +12,12 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-import math
 import os
 import sys
 from pathlib import Path
 
 from gdfe._validation import GdfeError, check_choice
-from gdfe.io import json_default
+from gdfe.io import finite_json
 from gdfe.resources import LARGE_MEMORY_FRACTION, LARGE_SECONDS, format_seconds
 from gdfe.solver.simulation import TRUSTED_TOL  # the loosest --tol the command line accepts
 
@@ -44,30 +43,19 @@ def json_arg(p, what="the result", dest="json"):
                         "to FILE.json beside the text")
 
 
-def _finite(obj):
-    """``obj`` with non-finite floats as None (JSON has no NaN or infinity)."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite(v) for v in obj]
-    return obj
-
-
 def emit(obj, as_json, text: str) -> None:
     """The result: ``text``, or ``obj`` as JSON on standard output (``as_json`` True or ``"-"``), or both
     (``as_json`` a file name: the JSON written there, the text printed with a line saying so)."""
-    payload = json.loads(json.dumps(obj, default=json_default))  # numpy -> Python, then NaN -> null
+    payload = finite_json(obj)
     if as_json is True or as_json == "-":
-        print(json.dumps(_finite(payload), indent=2, allow_nan=False))
+        print(json.dumps(payload, indent=2, allow_nan=False))
         return
     if as_json:
         from gdfe.io import write_text
 
         path = Path(as_json)
         try:
-            write_text(path, json.dumps(_finite(payload), indent=2, allow_nan=False) + "\n")
+            write_text(path, json.dumps(payload, indent=2, allow_nan=False) + "\n")
         except OSError as exc:
             raise GdfeError(f"--json: cannot write {path}: {exc.strerror or exc}") from None
         text = f"{text}\nwrote {path}"
