@@ -58,7 +58,7 @@ from gdfe.measure import rigid_align
 from gdfe.paper import FIG6_D
 from gdfe.resources import estimate_run
 
-__all__ = ["Reachability", "SurfaceDesign", "scale_for", "closest_reachable", "reachable_sizes", "natural_curvature",
+__all__ = ["TOLERANCE_FRACTION", "Reachability", "SurfaceDesign", "scale_for", "closest_reachable", "reachable_sizes", "natural_curvature",
            "target_start", "initial_coating", "Objective", "design_surface", "DEFAULT_ITERATIONS", "FOLD_TOL",
            "BRANCH_RATIO", "BRANCH_FLOOR"]
 
@@ -75,6 +75,10 @@ BRANCH_FLOOR = 0.1
 #: Tolerance (units of h) of the folds inside the optimisation: the adjoint gradient is as
 #: accurate as the equilibrium (the gradient test checks it at this tolerance).
 FOLD_TOL = 1e-8
+
+
+#: The default tolerance of a design: its printed fold within this fraction of the film's size RMS.
+TOLERANCE_FRACTION = 0.01
 
 
 def natural_curvature(II):
@@ -522,7 +526,7 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=FIG6_D, h=None, model=N
     b = block_size(w_min, pixel)
     radius = 2.0 * b * pixel if filter_radius is None else check_number("filter_radius", filter_radius, minimum=0.0)
     size = float(np.max(target.film_size))
-    tol_mm = 0.01 * size if tolerance_mm is None else check_positive("tolerance_mm", tolerance_mm)
+    tol_mm = TOLERANCE_FRACTION * size if tolerance_mm is None else check_positive("tolerance_mm", tolerance_mm)
     seconds = {}
     t0 = time.perf_counter()
 
