@@ -43,10 +43,11 @@ GOAL = 0.13
 #: Whether the goal is met (measured by this study; see its JSON): the regression checks expect
 #: what was measured, so a change either way is flagged.
 GOAL_MET = False
-#: Whether the goal holds for the model family chosen on all tests and refitted fold by fold
-#: (measured by this study): what the simulator loses against the closed form, without the
-#: variance of choosing the model again in every fold.
-FAMILY_GOAL_MET = True
+#: How far the held-out RMSE of the model family chosen on all tests (refitted fold by fold) may be
+#: through GDFE from the same through its closed form [rad]: what the simulator loses, without the
+#: variance of choosing the model again in every fold (the largest single-specimen difference is
+#: about 0.014 rad at 16 cells across the hinge).
+FAMILY_SIMULATOR_TOL = 0.01
 #: Resolution of each part study's designs (the part studies' own presets).
 PARTS = {"coarse": "coarse", "default": "coarse", "fine": "default"}
 
@@ -88,7 +89,9 @@ def _fold(job):
     refit = gdfe.paper_model(gdfe.fit_reading(sub, "eq1", n_boot=0).K)
     res_k = gdfe.simulate(gdfe.hinge(L, d=d, h=h, model=refit, cell_size=_cell(L, cells)))
     # the model family chosen on all 18 tests, its parameters refitted to these 17
-    fixed_fit = next(f for f in diag.fits if f.name == family)
+    fixed_fit = next((f for f in diag.fits if f.name == family), None)
+    if fixed_fit is None:
+        raise RuntimeError(f"the family {family!r} chosen on all tests is not among the fits of fold {i + 1}")
     fixed = gdfe.DeformationModel.from_effect_fit(fixed_fit, n_tests=n - 1)
     res_f = gdfe.simulate(_specimen(L, d, h, fixed, cells))
     return {"test": i + 1, "L_mm": L, "d_mm": d, "h_mm": h, "measured_rad": float(tests.alpha[i]),
@@ -274,11 +277,14 @@ def run(resolution="default", out=None):
                  ho["rmse_closed_form_nested_rad"], None, GOAL, "le", unit="rad", expect=GOAL_MET,
                  note="the diagnosis's own held-out RMSE of its chosen model, "
                       f"{ho['diagnosis_loo_rmse_rad']:.3f} rad, chooses the model on all 18 tests first"),
-        headline(f"the model family chosen on all 18 tests ({ho['family']}), refitted per fold, through GDFE",
-                 ho["rmse_family_gdfe_rad"], None, GOAL, "le", unit="rad", expect=FAMILY_GOAL_MET,
-                 note=f"the family's closed form held out the same way: {ho['rmse_family_closed_form_rad']:.3f} rad "
-                      f"(the diagnosis's own figure, {ho['diagnosis_loo_rmse_rad']:.3f} rad); the choice of the "
-                      "family saw the held-out test, so this is optimistic beside the line above"),
+        headline(f"the model family chosen on all 18 tests ({ho['family']}), refitted per fold: held-out RMSE "
+                 "through GDFE minus through its closed form",
+                 abs(ho["rmse_family_gdfe_rad"] - ho["rmse_family_closed_form_rad"]), None, FAMILY_SIMULATOR_TOL,
+                 "le", unit="rad",
+                 note=f"through GDFE {ho['rmse_family_gdfe_rad']:.4f} rad, closed form "
+                      f"{ho['rmse_family_closed_form_rad']:.4f} rad (the diagnosis's own held-out figure, "
+                      f"{ho['diagnosis_loo_rmse_rad']:.4f} rad): what the simulator loses; no goal line, because "
+                      "the choice of the family saw the held-out test"),
         headline("GDFE with only K refitted, held out", ho["rmse_refit_K_gdfe_rad"], None, GOAL, "le", unit="rad",
                  expect=False, note="Eq. 3 refitted fold by fold: what the paper's principle can do"),
         headline("largest |GDFE - closed form| of a held-out specimen",
