@@ -332,6 +332,34 @@ def test_auto_stops_the_contact_free_solve_where_it_crosses_itself():
     assert "iteration 8 of frame 1" in gdfe.simulate(des).contact.reason and off.iterations > 8
 
 
+def test_auto_above_the_watch_limit_tests_only_the_solved_shape(monkeypatch):
+    """Above WATCH_MAX_CELLS no surface is made during the solve; the check of the result leads to contact."""
+    _ipctk()
+    from gdfe.solver import simulation
+
+    des = gdfe.hinge(5.0, d=0.33, cell_size=0.5)
+    on = gdfe.simulate(des, contact="on")
+    made = []
+    monkeypatch.setattr(simulation, "WATCH_MAX_CELLS", 0)
+    monkeypatch.setattr(simulation, "Contact", lambda *a: made.append(a) or Contact(*a))
+    auto = gdfe.simulate(des)
+    assert len(made) == 1  # for the contact solve, after the contact-free one has finished
+    assert auto.contact.used and auto.contact.reason.startswith("the contact-free solve penetrated itself")
+    assert np.array_equal(auto.points, on.points) and not auto.penetrates
+    assert auto.timings["contact_free_solve"] > 0
+
+
+def test_auto_solves_with_contact_when_only_the_final_check_finds_a_crossing(monkeypatch):
+    """No test during the solve (the watch holds no surface): the penetration check still leads to contact."""
+    _ipctk()
+    from gdfe.solver import simulation
+
+    monkeypatch.setattr(simulation, "AUTO_CHECK_EVERY", 10**6)
+    res = gdfe.simulate(gdfe.hinge(5.0, d=0.33, cell_size=0.5))
+    assert res.contact.used and res.contact.reason.startswith("the contact-free solve penetrated itself")
+    assert not res.penetrates and res.contact.pairs > 0
+
+
 def test_hinge_9mm_with_contact_has_no_penetration():
     _ipctk()
     des = gdfe.hinge(9.0, d=0.33)

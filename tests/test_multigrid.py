@@ -89,3 +89,19 @@ def test_multigrid_path_reaches_the_factorised_shape(monkeypatch):
     size = np.linalg.norm(np.ptp(des.mesh.points, axis=0))
     assert gdfe.shape_distance(ref.points, res.points)["max"] < 1e-7 * size
     assert res.energy == pytest.approx(ref.energy, rel=1e-9)
+
+
+def test_dropped_caches_are_made_again_with_the_same_solve(monkeypatch):
+    """Solver.drop_caches frees the Newton Hessian's structures and the multigrid; the next solve remakes them."""
+    monkeypatch.setattr(sys.modules["gdfe.solver.energy"], "MULTIGRID_CELLS", 100)
+    monkeypatch.setattr(sys.modules["gdfe.solver.newton"], "RELEASE_POINTS", 0)  # and the heap is trimmed each step
+    des = gdfe.from_masks(*mask_sheet(900), 0.1, 0.7, nz=1)
+    s = Solver(des)
+    V0 = s.linearised_start(des.mesh.points.copy())
+    first = s.solve(V0, method="newton-cg", tol=1e-9)
+    mg, rh = s.multigrid, s.reduced_hessian
+    s.drop_caches()
+    assert "multigrid" not in s.__dict__ and "reduced_hessian" not in s.__dict__
+    again = s.solve(V0, method="newton-cg", tol=1e-9)
+    assert s.multigrid is not mg and s.reduced_hessian is not rh
+    assert np.array_equal(first.points, again.points) and first.iterations == again.iterations

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 
+from gdfe import _memory
 from gdfe._validation import GdfeError, check_array, check_choice, check_instance, check_int, check_number
 from gdfe.solver.alternation import solve_alternation
 from gdfe.solver.contact import Contact
@@ -59,6 +60,16 @@ class Solver(LocalGlobal):
     def reduced_hessian(self) -> ReducedHessian:
         """The Hessian's mesh-only constants (made on first use)."""
         return ReducedHessian(self)
+
+    def drop_caches(self):
+        """Drop what the solves made on first use (the Newton Hessian's structures, the multigrid).
+
+        They are made again when a solve needs them; a Newton solve of 10^6 cells holds about
+        1 GiB in them.
+        """
+        for name in ("reduced_hessian", "multigrid"):
+            self.__dict__.pop(name, None)
+        _memory.release()
 
     def hessian(self, Q, S, activation=1.0, mu=0.0):
         """Positive semi-definite Hessian of the rotation-reduced energy, plus ``mu`` times ``2 L``.

@@ -18,13 +18,14 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
+from gdfe import _memory
 from gdfe._validation import GdfeError
 from gdfe.solver.energy import SolveStats
 from gdfe.solver.linalg import factorise
 from gdfe.solver.multigrid import lattice
 
 __all__ = ["MU_MIN", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "CONTACT_ALPHAS", "CONTACT_EXACT_RES", "DRIFT_WINDOW",
-           "DRIFT_ENERGY", "DRIFT_SHRINK", "ON_DRIFT", "CG_RTOL_MIN", "CG_RTOL_MAX", "CG_TARGET_MARGIN", "COARSE_REUSE", "COARSE_REUSE_DAMPING", "ReducedHessian", "Linearisation", "CoarseSpace", "pcg", "deformation",
+           "DRIFT_ENERGY", "DRIFT_SHRINK", "ON_DRIFT", "RELEASE_POINTS", "CG_RTOL_MIN", "CG_RTOL_MAX", "CG_TARGET_MARGIN", "COARSE_REUSE", "COARSE_REUSE_DAMPING", "ReducedHessian", "Linearisation", "CoarseSpace", "pcg", "deformation",
            "solve_newton", "factorised_directions", "cg_directions"]
 
 log = logging.getLogger(__name__)
@@ -65,6 +66,9 @@ DRIFT_ENERGY = 1e-4
 DRIFT_SHRINK = 0.1
 #: What a Newton solve does when it drifts: ``"warn"`` (say so and go on) or ``"stop"``.
 ON_DRIFT = ("warn", "stop")
+#: Above this many vertices a Newton solve gives the C heap's free memory back to the system
+#: after every step (:func:`gdfe._memory.release`).
+RELEASE_POINTS = 50_000
 
 
 def _cross(p):
@@ -729,6 +733,8 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
                     break
         log.debug("newton %d: residual %.3e, error estimate %.3e, energy %.6e, mu %.1e",
                   it, res, error, E, mu)
+        if steps.n > RELEASE_POINTS:
+            _memory.release()
         energies.append(E)
         if monitor is not None and contact is None:
             monitor(it, V)
