@@ -260,7 +260,7 @@ def test_newton_cg_products_and_coarse_matrix_match_the_assembled_hessian(turn, 
     Z3 = hs.coarse.Z3
     Hc = (Z3.T @ H @ Z3).toarray()
     np.testing.assert_allclose(hs.coarse_matrix(lin, rest, mu).toarray(), Hc, rtol=0, atol=1e-12 * np.abs(Hc).max())
-    assert hs.coarse.spacing >= 2 and Z3.shape[1] < Z3.shape[0] / 4
+    assert hs.coarse.spacing >= 2 and Z3.shape[1] < Z3.shape[0] / 3  # two cells apart: about a quarter, more at the rim
 
 
 def test_linearised_start_falls_back_to_the_direct_solve_when_the_coarse_matrix_is_singular(monkeypatch):

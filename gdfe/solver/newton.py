@@ -192,8 +192,13 @@ class ReducedHessian:
         The design's local-global steps (its mesh, ``L``, pinned vertex and factorised ``L_ff``).
     """
 
-    #: Spacing of the coarse grid of ``method="newton-cg"``, in film thicknesses.
-    coarse_spacing = 1.5
+    #: Spacing of the coarse grid of ``method="newton-cg"``, in film thicknesses (at least two
+    #: cells). Measured on the 10^5-cell Figure 8 plates (25 um pixels, h = 0.29 mm), fine-level
+    #: Newton seconds at 1.5 / 0.75 / 0.5 / 0.4 / 0.3 / 0.2: twist 50.8 / 27.5 / 25.1 / 22.3 /
+    #: 24.7 / 25.2; at 1.5 / 0.4: dome 10.2 / 6.5, saddle 16.7 / 10.8, the corrugation (0.1 mm
+    #: pixels) 15.8 / 14.8 - same iterations and energies; a grid of 18 pixels left the bending
+    #: between the pixel and the thickness to CG.
+    coarse_spacing = 0.4
     #: ... widened so that the grid has at most about this many coarse cells per layer: the
     #: coarse matrix is factorised every step, and its factorisation grows faster than its size.
     coarse_cells = 10_000
@@ -216,8 +221,8 @@ class ReducedHessian:
         """The :class:`CoarseSpace`: a grid about :attr:`coarse_spacing` film thicknesses apart.
 
         At least two cells apart, so that the coarse space carries the bending at lengths
-        above the thickness, which the n x n system alone resolves badly; wider where that
-        would give more than :attr:`coarse_cells` coarse cells per layer.
+        above a fraction of the thickness, which the n x n system alone resolves badly; wider
+        where that would give more than :attr:`coarse_cells` coarse cells per layer.
         """
         steps = self.steps
         design = steps.design
