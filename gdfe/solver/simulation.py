@@ -257,8 +257,9 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
         slows down where nothing touches, and nothing that passes through itself is
         returned as an answer while contact is installed. The contact-free Newton solve is
         tested for self-intersection every :data:`AUTO_CHECK_EVERY` iterations and at the end
-        of every frame but the last, and stops at the first that crosses itself: the contact solve then starts
-        at once, and its result is that of ``"on"``. ``"on"``: every frame with
+        of every frame but the last (designs of at most :data:`WATCH_MAX_CELLS` cells), and stops
+        at the first that crosses itself: the contact solve then starts at once, and its result
+        is that of ``"on"``. ``"on"``: every frame with
         contact. ``"off"``: no contact; a result that penetrates itself is logged as a
         warning. Every result carries the check (:attr:`Result.penetration`). A contact
         solve uses a Newton method (``"auto"``'s choice where ``method`` is an
