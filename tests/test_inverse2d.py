@@ -250,6 +250,7 @@ def test_design_target_bad_inputs(tmp_path, capsys):
              (["--target", str(bad), "--size", "3"], "bad.stl"),
              (["--target", "dome", "--size", "3", "--text", "ab"], "--text"),
              (["--target", "dome", "--size", "3", "--R", "0.7"], "--R"),
+             (["--target", "dome", "--size", "3", "--spacing", "0.1"], "--spacing"),
              (["--target", "dome", "--size", "3", "--iterations", "-1"], "iterations"),
              (["--target", "dome", "--size", "3", "--pixel", "0.5", "--w-min", "0.2"], "w_min"),
              (["--target", "dome", "--size", "3", "--pixel", "2.5"], "pixel: expected at most half"),

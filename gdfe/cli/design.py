@@ -36,6 +36,7 @@ __all__ = ["register", "run"]
 DEFAULT_PIXEL = 0.125  # mm: the pattern cell of the studies' default resolution
 DEFAULT_WIDTH = 0.5  # mm: the studies' strip (narrow: the cylindrical fold Eq. 2 assumes)
 DEFAULT_PENALTY = 0.1  # the paper's third level (Fig. 10)
+DEFAULT_SPACING = 0.2  # mm: sampling of a sketch's curved segments
 
 
 def register(sub):
@@ -70,8 +71,8 @@ def register(sub):
     p.add_argument("--compensate", action="store_true",
                    help="print each couple |alpha| h/2 longer so the mid-line keeps its length (not the paper's)")
     p.add_argument("--svg-id", help="sketch SVG: id of the stroke to read (default: the only one)")
-    p.add_argument("--spacing", type=float, default=0.2,
-                   help="sketch SVG: sampling of curved segments [mm] (default 0.2)")
+    p.add_argument("--spacing", type=float, default=None,
+                   help=f"sketch SVG: sampling of curved segments [mm] (default {DEFAULT_SPACING:g})")
     p.add_argument("--no-check", action="store_true", help="write the files, skip the simulated check")
     g = p.add_argument_group("2-D design from a target surface")
     g.add_argument("--target", metavar="SURFACE",
@@ -138,7 +139,7 @@ def _targets(args, ch):
         ch.set("input", f"couples {path}", "command line")
         return [(cf.target.name, cf.target)], cf.film, cf.print
     if suffix in (".csv", ".txt", ".svg"):
-        P = inv.read_sketch(path, element_id=args.svg_id, spacing=args.spacing)
+        P = inv.read_sketch(path, element_id=args.svg_id, spacing=DEFAULT_SPACING if args.spacing is None else args.spacing)
         ch.set("input", f"sketch {path} ({len(P)} points)", "command line")
         penalty = ch.pick("penalty", args.penalty, None, DEFAULT_PENALTY, "paper (Fig. 10, third level)")
         weights = ch.pick("weights", args.weights, None, "plain", "paper (sum over the vertices)")
@@ -151,7 +152,8 @@ def _targets(args, ch):
 
 #: Options of the 1-D pipeline only, and of the 2-D one only: (dest, flag).
 _ONLY_1D = (("input", "INPUT"), ("text", "--text"), ("R", "--R"), ("K", "--K"), ("penalty", "--penalty"),
-            ("weights", "--weights"), ("rounding", "--rounding"), ("clamp", "--clamp"), ("svg_id", "--svg-id"))
+            ("weights", "--weights"), ("rounding", "--rounding"), ("clamp", "--clamp"), ("svg_id", "--svg-id"),
+            ("spacing", "--spacing"))
 _ONLY_2D = (("size", "--size"), ("model", "--model"), ("iterations", "--iterations"), ("radius", "--radius"),
             ("angle", "--angle"), ("projection", "--projection"), ("tolerance", "--tolerance"))
 
