@@ -51,7 +51,7 @@ _INPUTS = (("L_mm", "hinge width L"), ("d_mm", "passive coat d"), ("h_mm", "film
 
 
 def indistinguishable(chosen, fits, alpha, kind_of, within_of=None, step=1.0, weights=None, sigma=None):
-    """The models the data cannot tell from ``chosen`` (``chosen`` first, then the others).
+    """The models the data cannot tell from ``chosen``, ``chosen`` among them (ordered as in Returns).
 
     Parameters
     ----------
