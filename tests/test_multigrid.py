@@ -105,3 +105,17 @@ def test_dropped_caches_are_made_again_with_the_same_solve(monkeypatch):
     again = s.solve(V0, method="newton-cg", tol=1e-9)
     assert s.multigrid is not mg and s.reduced_hessian is not rh
     assert np.array_equal(first.points, again.points) and first.iterations == again.iterations
+
+
+def test_with_a_multigrid_L_is_not_kept_and_its_products_are_exact(monkeypatch):
+    """A multigrid design keeps only L's blocks (L_ff, L_fp); apply_L and the property L give L exactly."""
+    from gdfe.solver.energy import system_matrix
+
+    monkeypatch.setattr(sys.modules["gdfe.solver.energy"], "MULTIGRID_CELLS", 100)
+    des = gdfe.from_masks(*mask_sheet(900), 0.1, 0.7, nz=2)
+    s = Solver(des)
+    assert s.uses_multigrid and s._L is None
+    L = system_matrix(des).tocsr()
+    assert abs(s.L - L).max() == 0.0
+    V = np.random.default_rng(1).standard_normal((s.n, 3))
+    np.testing.assert_allclose(s.apply_L(V), L @ V, rtol=0, atol=1e-14 * np.abs(L @ V).max())

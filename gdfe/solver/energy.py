@@ -296,7 +296,8 @@ class LocalGlobal:
     n : int
         Number of vertices.
     L : (n, n) sparse matrix
-        :func:`system_matrix`.
+        :func:`system_matrix`; where the design has a multigrid, made from ``L_ff`` and ``L_fp``
+        when asked, not kept (the solves use :meth:`apply_L`, which needs no copy of it).
     pin : int
         The vertex held in place (a vertex of the first rigid cell, else of cell 0): it
         fixes the translations, the null space of ``L``, without changing the shape.
@@ -328,21 +329,48 @@ class LocalGlobal:
         self.n = mesh.n_points
         m = mesh.n_cells
         t0 = time.perf_counter()
-        self.L = system_matrix(design).tocsr()  # CSR: its products with (n, 3) arrays are 1.4x faster than CSC
+        L = system_matrix(design).tocsr()  # CSR: its products with (n, 3) arrays are 1.4x faster than CSC
         rigid = np.nonzero(design.material == Material.RIGID)[0]
         self.pin = int(self.cells[rigid[0] if rigid.size else 0, 0])
         self.free = np.delete(np.arange(self.n), self.pin)
-        rows = self.L[self.free]
+        rows = L[self.free]
         self.L_ff = rows[:, self.free].tocsr()  # symmetric: its CSR arrays are also its CSC arrays
-        self.L_fp = rows[:, [self.pin]]
+        self.L_fp = rows[:, [self.pin]].tocsr()
+        self._L_pf = self.L_fp.T.tocsr()
+        self._L_pp = float(L[self.pin, self.pin])
         del rows
         self.B = sp.csr_matrix((np.repeat(self.w, 8), (self.cells.ravel(), np.arange(8 * m))),
                                shape=(self.n, 8 * m))
         self.uses_multigrid = m > MULTIGRID_CELLS
+        # with a multigrid L itself is not kept beside L_ff (0.4 GiB at 10^6 cells): see apply_L
+        self._L = None if self.uses_multigrid else L
+        del L
         self.timings = {"setup": time.perf_counter() - t0, "orientation": 0.0, "assembly": 0.0}
         if not self.uses_multigrid:
             self.factor  # noqa: B018  (factorised now: every assembly step uses it)
         self._rest_cache = None
+
+    @property
+    def L(self):
+        """``L`` (n x n, CSR); with a multigrid made from its blocks when asked (not kept)."""
+        if self._L is not None:
+            return self._L
+        n, free, pin = self.n, self.free, self.pin
+        ff, fp = self.L_ff.tocoo(), self.L_fp.tocoo()
+        rows = np.concatenate([free[ff.row], free[fp.row], np.full(fp.nnz, pin), [pin]])
+        cols = np.concatenate([free[ff.col], np.full(fp.nnz, pin), free[fp.row], [pin]])
+        vals = np.concatenate([ff.data, fp.data, fp.data, [self._L_pp]])
+        return sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
+
+    def apply_L(self, V):
+        """``L @ V`` for ``V`` ``(n, r)`` (with a multigrid from the blocks of ``L``)."""
+        if self._L is not None:
+            return self._L @ V
+        Vf, vp = V[self.free], V[self.pin]
+        out = np.empty_like(V)
+        out[self.free] = self.L_ff @ Vf + self.L_fp @ vp[None, :]
+        out[self.pin] = self._L_pf @ Vf + self._L_pp * vp
+        return out
 
     @functools.cached_property
     def factor(self):

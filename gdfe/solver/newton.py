@@ -374,12 +374,12 @@ class ReducedHessian:
             return None
         J = self.jacobian(lin, rest) if J is None else J
         Jt = J.T
-        pin, free, L, fine_solve = steps.pin, steps.free, steps.L, steps.approx_solve_free
+        pin, free, apply_L, fine_solve = steps.pin, steps.free, steps.apply_L, steps.approx_solve_free
         scale = 2.0 * (1.0 + mu)
         two_level = self.two_level
 
         def apply_H(v):
-            out = scale * (L @ v) - 2.0 * (Jt @ (J @ v.ravel())).reshape(-1, 3)
+            out = scale * apply_L(v) - 2.0 * (Jt @ (J @ v.ravel())).reshape(-1, 3)
             if extra is not None:
                 out += (extra @ v.ravel()).reshape(-1, 3)
             out[pin] = 0.0
@@ -641,7 +641,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
         G = plain.V
         it += 1
         if lazy:
-            g = 2.0 * (steps.L @ V - plain.b)
+            g = 2.0 * (steps.apply_L(V) - plain.b)
             move = np.zeros_like(V)
             move[steps.free] = steps.approx_solve_free(-0.5 * g[steps.free])
             res = float(np.abs(move).max() / scale)
@@ -659,7 +659,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
         if (res <= tol and error <= STEP_TOL_FACTOR * tol) or it >= max_iter or stop_drift:
             break
         t0 = time.perf_counter()
-        grad = 2.0 * (steps.L @ V - plain.b)
+        grad = 2.0 * (steps.apply_L(V) - plain.b)
         if contact is None:
             grad[steps.pin] = 0.0
             direction = directions(Q, S, grad, res, error=error, target=STEP_TOL_FACTOR * tol)
