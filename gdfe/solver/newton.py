@@ -192,13 +192,19 @@ class ReducedHessian:
         The design's local-global steps (its mesh, ``L``, pinned vertex and factorised ``L_ff``).
     """
 
-    #: Spacing of the coarse grid of ``method="newton-cg"``, in film thicknesses (at least two
-    #: cells). Measured on the 10^5-cell Figure 8 plates (25 um pixels, h = 0.29 mm), fine-level
-    #: Newton seconds at 1.5 / 0.75 / 0.5 / 0.4 / 0.3 / 0.2: twist 50.8 / 27.5 / 25.1 / 22.3 /
+    #: Spacing of the coarse grid of ``method="newton-cg"``, in film thicknesses. Measured on the
+    #: 10^5-cell Figure 8 plates (25 um pixels, h = 0.29 mm), fine-level Newton seconds at 1.5 / 0.75 / 0.5 / 0.4 / 0.3 / 0.2: twist 50.8 / 27.5 / 25.1 / 22.3 /
     #: 24.7 / 25.2; at 1.5 / 0.4: dome 10.2 / 6.5, saddle 16.7 / 10.8, the corrugation (0.1 mm
     #: pixels) 15.8 / 14.8 - same iterations and energies; a grid of 18 pixels left the bending
     #: between the pixel and the thickness to CG.
     coarse_spacing = 0.4
+    #: ... where that is at least this many cells; on coarser cells (the thickness a few cells)
+    #: :attr:`coarse_spacing_few` thicknesses, at least two cells: a coarse matrix of a quarter of
+    #: the cells costs more to factorise than it saves (the 10^4-cell corrugation, 0.1 mm = h / 2.9
+    #: pixels: 1.68 s with grids 4 cells apart, 1.83 s with 5, 2.48 s with 2), and the contact
+    #: study's paths (symmetric hinges, the box) depend on the grid to round-off.
+    coarse_min_cells = 4
+    coarse_spacing_few = 1.5
     #: ... widened so that the grid has at most about this many coarse cells per layer: the
     #: coarse matrix is factorised every step, and its factorisation grows faster than its size.
     coarse_cells = 10_000
@@ -220,16 +226,19 @@ class ReducedHessian:
     def coarse(self) -> CoarseSpace:
         """The :class:`CoarseSpace`: a grid about :attr:`coarse_spacing` film thicknesses apart.
 
-        At least two cells apart, so that the coarse space carries the bending at lengths
-        above a fraction of the thickness, which the n x n system alone resolves badly; wider
-        where that would give more than :attr:`coarse_cells` coarse cells per layer.
+        At least two cells apart (:attr:`coarse_min_cells`, :attr:`coarse_spacing_few`), so that
+        the coarse space carries the bending at lengths above a fraction of the thickness, which
+        the n x n system alone resolves badly; wider where that would give more than
+        :attr:`coarse_cells` coarse cells per layer.
         """
         steps = self.steps
         design = steps.design
         dx, dy, _ = design.mesh.spacing
         layers = int(design.mesh.cell_k.max()) + 1
-        c = max(2, int(np.ceil(self.coarse_spacing * design.h / min(dx, dy))),
-                int(np.ceil(np.sqrt(design.n_cells / layers / self.coarse_cells))))
+        c = int(np.ceil(self.coarse_spacing * design.h / min(dx, dy)))
+        if c < self.coarse_min_cells:
+            c = max(2, int(np.ceil(self.coarse_spacing_few * design.h / min(dx, dy))))
+        c = max(c, int(np.ceil(np.sqrt(design.n_cells / layers / self.coarse_cells))))
         ijk = lattice(design.mesh)
         i, j, k = ijk.T
         I0, ti = np.divmod(i, c)
