@@ -28,14 +28,16 @@ __all__ = ["Estimate", "estimate_run", "machine_memory", "check_design_cells", "
 #: Bytes per cell of a design's mesh and cell data (points, hexahedra, indices, materials).
 MESH_BYTES_PER_CELL = 600
 #: Peak memory of a solve: a base (the interpreter, numpy, scipy) and bytes per cell (the
-#: factorised systems, the Hessian, the batched SVDs), fitted to the benchmark's peak memory.
+#: factorised systems, the Hessian, the batched SVDs), fitted to the benchmark's peak memory
+#: (per cell over the base: 5 840 B for the 10^6 corrugation, 6 600 B for the 785 456-cell dome,
+#: 9 700-10 900 B at 10^5 cells, where fixed costs weigh more).
 BASE_BYTES = 100 * 2**20
-SOLVE_BYTES_PER_CELL = 9_500
+SOLVE_BYTES_PER_CELL = 7_000
 #: Seconds of one frame at 10^4 cells, and the exponent of the time against the cell count below
-#: and above 10^5 cells, fitted to the benchmark's corrugated sheets (docs/bench/bench.txt; its
-#: Figure 8 twist takes 2.3 times the corrugation's time at 10^5 cells).
-SECONDS_AT = (1e4, 1.65)
-TIME_EXPONENTS = ((1e5, 1.15), (float("inf"), 1.83))
+#: and above 10^5 cells, fitted to the benchmark's corrugated sheets (docs/bench/corrugation;
+#: the Figure 8 twist takes 1.4 times the corrugation's time at 10^5 cells).
+SECONDS_AT = (1e4, 1.60)
+TIME_EXPONENTS = ((1e5, 1.21), (float("inf"), 1.86))
 #: Seconds every frame costs whatever its size (set-up, the penetration check, Python).
 FRAME_OVERHEAD_SECONDS = 0.02
 #: A run estimated to take longer than this, or more than this fraction of the machine's memory,
