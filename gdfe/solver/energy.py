@@ -336,7 +336,6 @@ class LocalGlobal:
         rows = L[self.free]
         self.L_ff = rows[:, self.free].tocsr()  # symmetric: its CSR arrays are also its CSC arrays
         self.L_fp = rows[:, [self.pin]].tocsr()
-        self._L_pf = self.L_fp.T.tocsr()
         self._L_pp = float(L[self.pin, self.pin])
         del rows
         self.B = sp.csr_matrix((np.repeat(self.w, 8), (self.cells.ravel(), np.arange(8 * m))),
@@ -369,7 +368,7 @@ class LocalGlobal:
         Vf, vp = V[self.free], V[self.pin]
         out = np.empty_like(V)
         out[self.free] = self.L_ff @ Vf + self.L_fp @ vp[None, :]
-        out[self.pin] = self._L_pf @ Vf + self._L_pp * vp
+        out[self.pin] = self.L_fp.T @ Vf + self._L_pp * vp  # L is symmetric: its pinned row is L_fp^T
         return out
 
     @functools.cached_property
