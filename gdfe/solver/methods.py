@@ -17,7 +17,7 @@ from gdfe.solver.alternation import solve_alternation
 from gdfe.solver.contact import Contact
 from gdfe.solver.energy import LocalGlobal, SolveStats
 from gdfe.solver.linearised import linearised_start
-from gdfe.solver.newton import ON_DRIFT, ReducedHessian, cg_directions, factorised_directions, solve_newton
+from gdfe.solver.newton import ON_DRIFT, RELEASE_POINTS, ReducedHessian, cg_directions, factorised_directions, solve_newton
 
 __all__ = ["METHODS", "AUTO_NEWTON_CELLS", "auto_method", "Solver"]
 
@@ -69,7 +69,8 @@ class Solver(LocalGlobal):
         """
         for name in ("reduced_hessian", "multigrid"):
             self.__dict__.pop(name, None)
-        _memory.release()
+        if self.n > RELEASE_POINTS:
+            _memory.release()
 
     def hessian(self, Q, S, activation=1.0, mu=0.0):
         """Positive semi-definite Hessian of the rotation-reduced energy, plus ``mu`` times ``2 L``.
