@@ -336,7 +336,8 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
     watch = _Watch(design, dhat) if contact == "auto" and available else None
     timings = {}
     try:
-        run = _run_frames(solver, acts, method, term, monitor=watch, **opts)
+        run = _run_frames(solver, acts, method, term,
+                          monitor=watch if design.n_cells <= WATCH_MAX_CELLS else None, **opts)
     except _Crossed as stop:
         run, pens, t_check, crossed = None, [], 0.0, stop.reason
     else:
@@ -406,7 +407,7 @@ class _Watch:
     Called with the frame, the Newton iteration (None at the end of a frame) and the shape;
     raises :class:`_Crossed` when the shape's boundary surface crosses itself (the IPC
     Toolkit's test on the :class:`Contact` surface, which the contact solve then uses); above
-    :data:`WATCH_MAX_CELLS` cells it does not test.
+    :data:`WATCH_MAX_CELLS` cells :func:`simulate` does not hand it to the solve.
     """
 
     def __init__(self, design, dhat):
@@ -421,7 +422,7 @@ class _Watch:
         return self.contact
 
     def __call__(self, frame, iteration, V):
-        if self.design.n_cells > WATCH_MAX_CELLS or (iteration is not None and iteration % AUTO_CHECK_EVERY):
+        if iteration is not None and iteration % AUTO_CHECK_EVERY:
             return
         t0 = time.perf_counter()
         crosses = self.surface().crosses(V)
