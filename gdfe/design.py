@@ -389,40 +389,107 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
                         f"hinge), got {cell_size:g} mm")
     nh = max(1, int(round(length / cell_size)))
     dx = length / nh
-    npanel = max(1, int(round(panel_length / dx)))
     ny = max(2, int(round(width / cell_size)))
-    dy = width / ny
-    nx = 2 * npanel + nh
-    check_design_cells("hinge", nx * ny * nz)  # before any array of that size is made
-    mat = np.full((nx, ny), int(Material.RIGID))
-    code = Material.CONTRACT_TOP if face == "top" else Material.CONTRACT_BOTTOM
-    mat[npanel:npanel + nh] = int(code)
-    cols = np.arange(nx)[:, None] * np.ones((1, ny), int)
-    regions2d = {"panel_a": cols < npanel, "hinge": (cols >= npanel) & (cols < npanel + nh),
-                 "panel_b": cols >= npanel + nh}
-    meta = {"kind": "hinge", "length_mm": length, "d_mm": d, "K": K if model is None or model.name in
-            ("paper", "eq3") else None, "R": R, "width_mm": width, "panel_length_mm": npanel * dx, "face": face}
-    if R is not None:
-        des = _grid_design(mat, R, h, (dx, dy), nz, isotropy, None, regions2d, meta,
-                           np.where(mat == int(code), np.nan if d is None else d, np.nan), None, None)
-    else:
-        dgrid = np.where(mat == int(code), d, np.nan)
-        des = _grid_design(mat, None, h, (dx, dy), nz, isotropy, None, regions2d, meta, dgrid, model, process)
-        hinge_cells = des.regions["hinge"]
-        des.meta["R"] = float(des.R[hinge_cells[0]])
-        if des.contraction is not None:  # a mechanism reached into the panels: they end where it stops
-            reached = (des.contraction > 0).any(axis=1)
-            for name in ("panel_a", "panel_b"):
-                cells = des.regions[name]
-                keep = cells[~reached[cells]]
-                if keep.size == 0:
-                    raise GdfeError(f"panel_length: the model's contraction reaches through the whole "
-                                    f"{name} ({panel_length:g} mm); expected panels longer than that")
-                des.regions[name] = keep
+    spec = _HingeSpec(length=length, width=width, h=h, d=d, K=K, R=R, nz=nz, isotropy=isotropy, face=face,
+                      model=model, process=process, nh=nh, ny=ny)
+    npanel = max(1, int(round(panel_length / dx)))
+    des = _hinge_design(spec, npanel)
+    reached = _panel_cells_reached(des, npanel)
+    if reached is not None and reached >= npanel:
+        # the model's contraction runs through a whole panel: the panels are a detail of the test, not of
+        # the part, so lengthen them until the contraction stops inside, then add the requested length
+        # beyond where it stops: the fold is measured on outer parts as long as the panels asked for
+        trial = npanel
+        while reached >= trial:
+            trial *= 2
+            if trial * dx > MAX_PANEL_FACTOR * (length + panel_length):
+                raise GdfeError(f"panel_length: the model's contraction reaches more than {trial // 2 * dx:g} mm "
+                                f"into the panels of a {length:g} mm hinge; expected it to stop within "
+                                f"{MAX_PANEL_FACTOR:g} x (length + panel_length)")
+            reached = _panel_cells_reached(_hinge_design(spec, trial), trial)
+        longer = reached + npanel
+        log.warning("hinge: the model's contraction reaches %.3g mm into the %.3g mm panels; panels lengthened "
+                    "to %.3g mm (the fold is measured on their outer %.3g mm)", reached * dx, npanel * dx,
+                    longer * dx, npanel * dx)
+        des = _hinge_design(spec, longer)
+        des.meta["panel_lengthened_from_mm"] = npanel * dx
+        des.meta["panel_reach_mm"] = reached * dx
+        npanel = longer
     _warn_aspect(check_resolution(des, "cell_size"))
     # x = 0 at the start of the hinge
     des.mesh.points[:, 0] -= npanel * dx
     return des
+
+
+#: The longest panel :func:`hinge` makes to outlast a model's reach, in units of length + panel_length.
+MAX_PANEL_FACTOR = 64.0
+
+
+@dataclasses.dataclass(frozen=True)
+class _HingeSpec:
+    """What :func:`hinge` builds, apart from the panels' length (``nh`` cells across the hinge, ``ny`` across
+    the strip)."""
+
+    length: float
+    width: float
+    h: float
+    d: float | None
+    K: float
+    R: float | None
+    nz: int
+    isotropy: float
+    face: str
+    model: object
+    process: dict | None
+    nh: int
+    ny: int
+
+
+def _hinge_design(spec, npanel):
+    """The hinge specimen with ``npanel`` cells in each panel; ``panel_a``/``panel_b`` are the panels' cells
+    that the model's contraction does not reach (all of a panel's cells when it reaches through)."""
+    nh, ny, nz = spec.nh, spec.ny, spec.nz
+    dx, dy = spec.length / nh, spec.width / ny
+    nx = 2 * npanel + nh
+    check_design_cells("hinge", nx * ny * nz)  # before any array of that size is made
+    mat = np.full((nx, ny), int(Material.RIGID))
+    code = Material.CONTRACT_TOP if spec.face == "top" else Material.CONTRACT_BOTTOM
+    mat[npanel:npanel + nh] = int(code)
+    cols = np.arange(nx)[:, None] * np.ones((1, ny), int)
+    regions2d = {"panel_a": cols < npanel, "hinge": (cols >= npanel) & (cols < npanel + nh),
+                 "panel_b": cols >= npanel + nh}
+    model, R, d = spec.model, spec.R, spec.d
+    meta = {"kind": "hinge", "length_mm": spec.length, "d_mm": d, "K": spec.K if model is None or model.name in
+            ("paper", "eq3") else None, "R": R, "width_mm": spec.width, "panel_length_mm": npanel * dx,
+            "face": spec.face}
+    if R is not None:
+        return _grid_design(mat, R, spec.h, (dx, dy), nz, spec.isotropy, None, regions2d, meta,
+                            np.where(mat == int(code), np.nan if d is None else d, np.nan), None, None)
+    dgrid = np.where(mat == int(code), d, np.nan)
+    des = _grid_design(mat, None, spec.h, (dx, dy), nz, spec.isotropy, None, regions2d, meta, dgrid, model,
+                       spec.process)
+    des.meta["R"] = float(des.R[des.regions["hinge"][0]])
+    if des.contraction is not None:  # a mechanism reached into the panels: they end where it stops
+        reached = (des.contraction > 0).any(axis=1)
+        for name in ("panel_a", "panel_b"):
+            cells = des.regions[name]
+            keep = cells[~reached[cells]]
+            if keep.size:
+                des.regions[name] = keep
+    return des
+
+
+def _panel_cells_reached(des, npanel):
+    """How many columns of cells into a panel (the deeper of the two) the model's contraction reaches,
+    or None when nothing reaches into the panels."""
+    if des.contraction is None:
+        return None
+    column = des.mesh.cell_ij[:, 0]
+    hit = column[(des.contraction > 0).any(axis=1)]
+    nh = int(des.mesh.cell_ij[:, 0].max()) + 1 - 2 * npanel
+    into_a = npanel - int(hit.min()) if hit.size and hit.min() < npanel else 0
+    into_b = int(hit.max()) - (npanel + nh) + 1 if hit.size and hit.max() >= npanel + nh else 0
+    return max(into_a, into_b)
 
 
 def from_rows(rows, R=None, h=DEFAULT_H, pixel=0.1, nz=DEFAULT_NZ, isotropy=1.0, d=None, model=None,
