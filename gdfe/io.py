@@ -8,6 +8,7 @@ write leaves nothing half-written behind.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import math
 import logging
@@ -21,7 +22,8 @@ from gdfe._validation import GdfeError, GdfeTypeError, describe
 
 __all__ = ["write_vtu", "write_series", "render_png", "write_json", "write_text", "surface_faces", "boundary_quads",
            "atomic_path", "json_default", "save_figure", "OutputFolder", "MATERIAL_CODES", "MANIFEST", "MARKER",
-           "folder_state"]
+           "folder_state", "hex_meshio", "material_field_data", "outline_edges", "EDGE_CELLS", "MATERIAL_LABELS",
+           "VIEWS"]
 
 log = logging.getLogger(__name__)
 
@@ -66,14 +68,17 @@ MATERIAL_CODES = {0: "rigid (both faces coated)", 1: "contract_top (bottom face 
                   2: "contract_bottom (top face coated, bottom free)", 3: "free_shrink (no coat)"}
 
 
-def _material_legend():
-    """The VTU ``FieldData`` block naming the ``material`` codes (meshio writes no field data to VTU)."""
+def material_field_data():
+    """The legend of the ``material`` codes as meshio ``field_data``: ``material_NAME`` -> ``[code]``.
+
+    Returns
+    -------
+    dict
+        ``{"material_rigid": array([0]), "material_contract_top": array([1]), ...}`` (int32 arrays).
+    """
     from gdfe.material import Material
 
-    arrays = "".join(f'<DataArray type="Int32" Name="material_{m.name.lower()}" NumberOfTuples="1" '
-                     f'format="ascii">{int(m)}</DataArray>\n' for m in Material)
-    words = "; ".join(f"{k} = {v}" for k, v in MATERIAL_CODES.items())
-    return f"<!--cell data 'material': {words}-->\n<FieldData>\n{arrays}</FieldData>\n"
+    return {f"material_{m.name.lower()}": np.array([int(m)], np.int32) for m in Material}
 
 
 def _cell_data(design):
@@ -81,17 +86,58 @@ def _cell_data(design):
             "layer": design.mesh.cell_k.astype(np.int32)}
 
 
-def write_vtu(path, points, design, point_data=None):
-    """Write one shape of a design as a VTU hexahedral mesh with the material map as cell data."""
+def hex_meshio(points, design, point_data=None):
+    """A meshio mesh of one shape of a design: the hexahedra, cell data ``material``, ``R`` and
+    ``layer``, and the legend of the material codes as ``field_data`` (:func:`material_field_data`).
+
+    Parameters
+    ----------
+    points : (n, 3) float array [mm]
+    design : Design
+    point_data : dict of (n, ...) arrays, optional
+    """
     import meshio
 
-    mesh = meshio.Mesh(np.asarray(points, float), [("hexahedron", design.mesh.cells)],
+    return meshio.Mesh(np.asarray(points, float), [("hexahedron", design.mesh.cells)],
                        cell_data={k: [v] for k, v in _cell_data(design).items()},
-                       point_data=point_data or {})
+                       point_data=point_data or {}, field_data=material_field_data())
+
+
+def _write_field_data(path, field_data):
+    """Add a mesh's ``field_data`` to the VTU file at ``path`` as its grid's ``FieldData`` (meshio's
+    VTU writer leaves field data out; its reader reads them back into ``Mesh.field_data``)."""
+    import xml.etree.ElementTree as ET
+
+    tree = ET.parse(path)
+    grid = tree.getroot().find("UnstructuredGrid")
+    if grid is None:  # not a file meshio's VTU writer wrote: nothing to add to
+        raise GdfeError(f"{path}: expected a VTU file with an UnstructuredGrid, got none")
+    block = ET.Element("FieldData")
+    for name, value in field_data.items():
+        value = np.atleast_1d(np.asarray(value))
+        kind = "Int32" if np.issubdtype(value.dtype, np.integer) else "Float64"
+        array = ET.SubElement(block, "DataArray", type=kind, Name=name, NumberOfTuples=str(value.size),
+                              format="ascii")
+        array.text = " ".join(str(v) for v in value.ravel().tolist())
+    words = "; ".join(f"{k} = {v}" for k, v in MATERIAL_CODES.items())
+    comment = ET.Comment(f"cell data 'material': {words}")
+    comment.tail = block.tail = block.text = "\n"
+    for array in block:
+        array.tail = "\n"
+    grid.insert(0, block)
+    grid.insert(0, comment)
+    tree.write(path, xml_declaration=True, encoding="utf-8")
+
+
+def write_vtu(path, points, design, point_data=None):
+    """Write one shape of a design as a VTU hexahedral mesh with the material map as cell data
+    and the legend of its codes as field data (:func:`hex_meshio`)."""
+    import meshio
+
+    mesh = hex_meshio(points, design, point_data)
     with atomic_path(path) as tmp:
         meshio.write(tmp, mesh, file_format="vtu")
-        text = tmp.read_text()
-        tmp.write_text(text.replace("<UnstructuredGrid>\n", "<UnstructuredGrid>\n" + _material_legend(), 1))
+        _write_field_data(tmp, mesh.field_data)
     return Path(path)
 
 
@@ -172,12 +218,139 @@ def boundary_quads(cells):
     return faces[boundary], owner[boundary]
 
 
-def render_png(result_or_points, path, design=None, title=None, window_size=(1000, 700)):
-    """Render a shape to a PNG, coloured by material, without a display.
+#: Above this many cells a picture draws no cell edges: the cells are then a few pixels wide and
+#: their edges would cover them in a dark moiré. Only the film's outline is drawn (its rim and its
+#: creases, where the surface turns by more than :data:`FEATURE_ANGLE`).
+EDGE_CELLS = 3000
+#: Angle between two faces' normals above which their common edge is drawn as an outline [rad].
+FEATURE_ANGLE = math.radians(30.0)
+#: The legend of each material's colour in pictures (:data:`MATERIAL_COLOURS`).
+MATERIAL_LABELS = {0: "both faces coated (rigid)", 1: "bottom face coated (bends up)",
+                   2: "top face coated (bends down)", 3: "uncoated (shrinks in-plane)"}
+#: Views of :func:`render_png`: azimuth and elevation of the direction towards the viewer [rad].
+VIEWS = {"iso": (math.radians(-60.0), math.radians(30.0)), "top": (0.0, math.pi / 2), "front": (-math.pi / 2, 0.0)}
+_EDGE_COLOUR = (0.2, 0.2, 0.22)
 
-    Uses PyVista off-screen; if PyVista or its OpenGL context is not available, falls
-    back to matplotlib's 3-D axes.
+
+@dataclasses.dataclass(frozen=True)
+class _Camera:
+    """An orthographic camera: screen axes ``right``, ``up`` and ``back`` (towards the viewer),
+    and the picture's window on the screen plane, ``(u0, u1, v0, v1)`` [mm]."""
+
+    right: np.ndarray
+    up: np.ndarray
+    back: np.ndarray
+    window: tuple
+
+    @property
+    def axes(self):
+        """(3, 3) array whose columns are right, up, back: ``points @ axes`` are screen coordinates [mm]."""
+        return np.column_stack([self.right, self.up, self.back])
+
+
+def _camera(points, view, aspect, margin=0.04):
+    """The camera of ``view`` framing ``points`` in a picture of width/height ``aspect``."""
+    az, el = VIEWS[view]
+    back = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+    if abs(back[2]) > 0.999:  # looking along z: +y up the picture
+        right, up = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
+        back = np.array([0.0, 0.0, 1.0])
+    else:
+        right = np.cross([0.0, 0.0, 1.0], back)
+        right /= np.linalg.norm(right)
+        up = np.cross(back, right)
+    uv = points @ np.column_stack([right, up])
+    lo, hi = uv.min(0), uv.max(0)
+    centre, size = (lo + hi) / 2, np.maximum(hi - lo, 1e-9) * (1 + 2 * margin)
+    width = max(size[0], size[1] * aspect)
+    height = width / aspect
+    window = (centre[0] - width / 2, centre[0] + width / 2, centre[1] - height / 2, centre[1] + height / 2)
+    return _Camera(right, up, back, tuple(float(w) for w in window))
+
+
+def _nice_length(length):
+    """The largest of 1, 2, 5 x 10^k not above ``length`` [mm]."""
+    k = math.floor(math.log10(length))
+    return max(m * 10.0 ** k for m in (1, 2, 5) if m * 10.0 ** k <= length * (1 + 1e-9))
+
+
+def _quad_normals(points, faces):
+    """Unit normals of quadrilaterals from their diagonals, (f, 3)."""
+    q = points[faces]
+    n = np.cross(q[:, 2] - q[:, 0], q[:, 3] - q[:, 1])
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+
+
+def outline_edges(points, faces, angle=FEATURE_ANGLE):
+    """The outline of a surface of quadrilaterals: edges of one face only, and edges whose two
+    faces' normals differ by more than ``angle``.
+
+    Parameters
+    ----------
+    points : (n, 3) float array [mm]
+    faces : (f, 4) int array
+    angle : float [rad]
+
+    Returns
+    -------
+    edges : (e, 2) int array
+        Vertex indices of each outline edge.
+    owners : (e, 2) int array
+        The faces on either side (``-1`` where there is only one).
     """
+    faces = np.asarray(faces)
+    e = faces[:, [0, 1, 1, 2, 2, 3, 3, 0]].reshape(-1, 2)
+    owner = np.repeat(np.arange(len(faces)), 4)
+    key = np.sort(e, axis=1).astype(np.int64)
+    code = key[:, 0] * (int(faces.max()) + 1 if faces.size else 1) + key[:, 1]
+    order = np.argsort(code, kind="stable")
+    code, key, owner = code[order], key[order], owner[order]
+    first = np.ones(len(code), bool)
+    first[1:] = code[1:] != code[:-1]
+    start = np.nonzero(first)[0]
+    count = np.diff(np.append(start, len(code)))
+    other = np.where(count >= 2, owner[np.minimum(start + 1, len(code) - 1)], -1)
+    a = owner[start]
+    normals = _quad_normals(points, faces)
+    cos = np.einsum("ij,ij->i", normals[a], normals[np.maximum(other, 0)])
+    keep = (count != 2) | (cos < math.cos(angle))
+    return key[start][keep], np.column_stack([a, other])[keep]
+
+
+def render_png(result_or_points, path, design=None, title=None, window_size=(1000, 700), *, view="iso",
+               edges=None, backend="auto"):
+    """Render a shape to a PNG without a display: its faces coloured by material, with a legend
+    of the materials shown, a scale bar [mm] and ``title``.
+
+    The projection is orthographic, so the scale bar holds for lengths parallel to the picture.
+    Designs of up to :data:`EDGE_CELLS` cells show their cells' edges; larger ones only their
+    outline (:func:`outline_edges`), shaded smoothly.
+
+    Parameters
+    ----------
+    result_or_points : Result or (n, 3) float array [mm]
+    path : str or Path
+    design : Design, optional
+        Needed with an array of points.
+    title : str, optional
+        The headline, e.g. the fold angle; default the shape's bounding box [mm].
+    window_size : (2,) int
+        Width and height of the picture [pixels].
+    view : {"iso", "top", "front"}
+        Direction of view (:data:`VIEWS`); ``top`` looks down the z axis.
+    edges : bool, optional
+        Draw the cells' edges (default: when the design has at most :data:`EDGE_CELLS` cells).
+    backend : {"auto", "pyvista", "matplotlib"}
+        ``auto``: PyVista off-screen, or matplotlib when PyVista or its OpenGL context is missing.
+
+    Returns
+    -------
+    Path
+    """
+    from gdfe._validation import check_choice
+
+    view = check_choice("view", view, tuple(VIEWS))
+    backend = check_choice("backend", backend, ("auto", "pyvista", "matplotlib"))
     if hasattr(result_or_points, "design"):
         points, design = result_or_points.points, result_or_points.design
     else:
@@ -185,60 +358,166 @@ def render_png(result_or_points, path, design=None, title=None, window_size=(100
         if design is None:
             raise GdfeTypeError("design: needed when rendering an array of points")
     faces, owner = surface_faces(design)
-    colours = (MATERIAL_COLOURS[design.material[owner]] * 255).astype(np.uint8)
+    material = design.material[owner]
+    colours = (MATERIAL_COLOURS[material] * 255).astype(np.uint8)
+    legend = [(MATERIAL_LABELS[int(m)], tuple(MATERIAL_COLOURS[int(m)])) for m in np.unique(design.material)]
+    if edges is None:
+        edges = design.n_cells <= EDGE_CELLS
+    if title is None:
+        size = points.max(0) - points.min(0)
+        title = f"{design.n_cells} cells, bounding box {size[0]:.3g} x {size[1]:.3g} x {size[2]:.3g} mm"
+    opts = {"legend": legend, "edges": bool(edges), "view": view}
     path = Path(path)
-    try:
-        _render_pyvista(points, faces, colours, path, title, window_size)
-    except Exception as exc:  # no OpenGL context: draw with matplotlib instead
-        log.info("pyvista rendering unavailable (%s); using matplotlib", exc)
-        _render_matplotlib(points, faces, colours, path, title, window_size)
+    if backend in ("auto", "pyvista"):
+        try:
+            _render_pyvista(points, faces, colours, path, title, window_size, **opts)
+            log.info("%s: rendered with pyvista", path)
+            return path
+        except Exception as exc:  # no pyvista or no OpenGL context: draw with matplotlib instead
+            if backend == "pyvista":
+                raise
+            log.info("pyvista rendering unavailable (%s); using matplotlib", exc)
+    _render_matplotlib(points, faces, colours, path, title, window_size, **opts)
+    log.info("%s: rendered with matplotlib", path)
     return path
 
 
-def _render_pyvista(points, faces, colours, path, title, window_size):
+def _render_pyvista(points, faces, colours, path, title, window_size, **opts):
+    """The picture of :func:`render_png` with the film drawn by PyVista (VTK) off-screen."""
+    import pyvista  # noqa: F401  (fail here, before any figure, when PyVista is missing)
+
+    _picture(points, faces, colours, path, title, window_size, scene=_pyvista_scene, **opts)
+
+
+def _render_matplotlib(points, faces, colours, path, title, window_size, **opts):
+    """The picture of :func:`render_png` with the film drawn by matplotlib (painter's algorithm)."""
+    _picture(points, faces, colours, path, title, window_size, scene=_matplotlib_scene, **opts)
+
+
+def _picture(points, faces, colours, path, title, window_size, *, scene, legend=(), edges=False, view="iso"):
+    """Lay out title, film, scale bar and legend in one figure; ``scene`` draws the film into its axes."""
+    import textwrap
+
+    from matplotlib.patches import Patch
+    from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
+
+    from gdfe._plotting import pyplot
+
+    plt = pyplot()
+    points = np.asarray(points, float)
+    faces = np.asarray(faces)
+    colours = np.asarray(colours)
+    w, h = (int(v) for v in window_size)
+    fig = plt.figure(figsize=(w / 100, h / 100), dpi=100, layout="constrained")
+    try:
+        ax = fig.add_subplot()
+        ax.set_axis_off()
+        if title:
+            fig.suptitle("\n".join(textwrap.wrap(str(title), max(30, w // 9))), fontsize=12)
+        if legend:
+            fig.legend(handles=[Patch(facecolor=c, edgecolor="0.3", label=t) for t, c in legend],
+                       loc="outside right center", fontsize=9, frameon=False, title="material")
+        # the scale bar: about a fifth of the film's extent across the picture
+        u0, u1, v0, v1 = _camera(points, view, w / h).window
+        ax.set(xlim=(u0, u1), ylim=(v0, v1))
+        uv = points @ _camera(points, view, 1.0).axes[:, :2]
+        bar = _nice_length(max(float(np.ptp(uv[:, 0])), float(np.ptp(uv[:, 1])), 1e-6) / 5)
+        ax.add_artist(AnchoredSizeBar(ax.transData, bar, f"{bar:g} mm", loc="upper left", bbox_to_anchor=(0, 0),
+                                      bbox_transform=ax.transAxes, frameon=False, size_vertical=0, pad=0.2,
+                                      sep=4, fontproperties={"size": 10}))
+        fig.canvas.draw()  # settle the layout, then draw the film at the axes' final size in pixels
+        fig.set_layout_engine("none")
+        box = ax.get_window_extent()
+        px = (max(int(round(box.width)), 16), max(int(round(box.height)), 16))
+        cam = _camera(points, view, px[0] / px[1])
+        scene(ax, points, faces, colours, cam, px, edges)
+        u0, u1, v0, v1 = cam.window
+        ax.set(xlim=(u0, u1), ylim=(v0, v1), aspect="equal")
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, format="png", dpi=100)
+    finally:
+        plt.close(fig)
+    return Path(path)
+
+
+def _pyvista_scene(ax, points, faces, colours, cam, px, edges):
+    """Render the film with PyVista at ``px`` pixels through ``cam`` and show it in ``ax``."""
     import pyvista as pv
 
     with contextlib.suppress(Exception):  # VTK warns on stderr when there is no X display
         import vtk
 
         vtk.vtkLogger.SetStderrVerbosity(vtk.vtkLogger.VERBOSITY_OFF)
-    cells = np.hstack([np.full((len(faces), 1), 4), faces]).ravel()
-    surf = pv.PolyData(points, cells)
+    surf = pv.PolyData(points, np.hstack([np.full((len(faces), 1), 4), faces]).ravel())
     surf.cell_data["colour"] = colours
-    pl = pv.Plotter(off_screen=True, window_size=list(window_size))
-    pl.set_background("white")
-    pl.add_mesh(surf, scalars="colour", rgb=True, show_edges=True, edge_color=(0.3, 0.3, 0.3),
-                line_width=0.5)
-    if title:
-        pl.add_text(title, font_size=10, color="black")
-    pl.view_isometric()
-    pl.camera.elevation = -10
-    pl.reset_camera()
-    with atomic_path(path) as tmp:
-        pl.screenshot(str(tmp))
-    pl.close()
+    pl = pv.Plotter(off_screen=True, window_size=list(px))
+    try:
+        pl.set_background("white")
+        if edges:
+            pl.add_mesh(surf, scalars="colour", rgb=True, show_edges=True, edge_color=_EDGE_COLOUR, line_width=0.5)
+        else:
+            pl.add_mesh(surf, scalars="colour", rgb=True, smooth_shading=True, split_sharp_edges=True,
+                        feature_angle=math.degrees(FEATURE_ANGLE))
+            lines, _ = outline_edges(points, faces)
+            if len(lines):
+                # lifted towards the viewer by a hair, so that the faces along them do not hide them
+                lift = 1e-3 * float(np.ptp(points, axis=0).max()) * cam.back
+                outline = pv.PolyData(points + lift, lines=np.hstack([np.full((len(lines), 1), 2), lines]).ravel())
+                pl.add_mesh(outline, color=_EDGE_COLOUR, line_width=1.0)
+        u0, u1, v0, v1 = cam.window
+        depth = points @ cam.back
+        span = float(np.ptp(depth)) + (u1 - u0) + (v1 - v0)
+        focal = (u0 + u1) / 2 * cam.right + (v0 + v1) / 2 * cam.up + float(depth.mean()) * cam.back
+        pl.camera.focal_point = tuple(focal)
+        pl.camera.position = tuple(focal + 2 * span * cam.back)
+        pl.camera.up = tuple(cam.up)
+        pl.enable_parallel_projection()
+        pl.camera.parallel_scale = (v1 - v0) / 2
+        pl.reset_camera_clipping_range()
+        image = pl.screenshot(return_img=True)
+    finally:
+        pl.close()
+    ax.imshow(image, extent=cam.window, interpolation="none", origin="upper")
 
 
-def _render_matplotlib(points, faces, colours, path, title, window_size):
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+def _matplotlib_scene(ax, points, faces, colours, cam, px, edges, slabs=16):
+    """Draw the film into ``ax`` in screen coordinates [mm]: the faces turned towards the viewer,
+    farthest first, shaded by a light over the viewer's shoulder; the outline (or every edge)
+    drawn in depth slabs between them so that nearer faces hide it."""
+    from matplotlib.collections import LineCollection, PolyCollection
 
-    from gdfe._plotting import pyplot
-
-    plt = pyplot()
-
-    fig = plt.figure(figsize=(window_size[0] / 100, window_size[1] / 100), dpi=100)
-    ax = fig.add_subplot(projection="3d")
-    ax.add_collection3d(Poly3DCollection(points[faces], facecolors=colours / 255.0,
-                                         edgecolors=(0.3, 0.3, 0.3, 0.3), linewidths=0.2))
-    lo, hi = points.min(0), points.max(0)
-    c, r = (lo + hi) / 2, (hi - lo).max() / 2
-    ax.set(xlim=(c[0] - r, c[0] + r), ylim=(c[1] - r, c[1] + r), zlim=(c[2] - r, c[2] + r),
-           xlabel="x [mm]", ylabel="y [mm]", zlabel="z [mm]")
-    if title:
-        ax.set_title(title)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png")
-    plt.close(fig)
+    screen = points @ cam.axes
+    normals = _quad_normals(points, faces)
+    front = normals @ cam.back > 1e-9
+    light = cam.back + 0.5 * cam.up + 0.3 * cam.right
+    light /= np.linalg.norm(light)
+    shade = 0.45 + 0.55 * np.clip(normals @ light, 0.0, 1.0)
+    rgb = np.clip(np.asarray(colours, float) / 255.0 * shade[:, None], 0, 1)
+    if edges:
+        lines = faces[front][:, [0, 1, 1, 2, 2, 3, 3, 0]].reshape(-1, 2)
+    else:
+        lines, owners = outline_edges(points, faces)
+        seen = front[owners[:, 0]] | ((owners[:, 1] >= 0) & front[np.maximum(owners[:, 1], 0)])
+        lines = lines[seen]
+    ids = np.nonzero(front)[0]
+    depth = screen[faces[ids], 2].mean(1)
+    ids = ids[np.argsort(depth, kind="stable")]
+    depth = np.sort(depth)
+    line_depth = screen[lines, 2].max(1) if len(lines) else np.zeros(0)
+    lo, hi = (float(depth.min()), float(depth.max())) if len(depth) else (0.0, 1.0)
+    bounds = np.linspace(lo, hi, slabs + 1)[1:-1]
+    face_slab = np.searchsorted(bounds, depth, side="right")
+    line_slab = np.searchsorted(bounds, line_depth, side="right")
+    for k in range(slabs):
+        sel = ids[face_slab == k]
+        if len(sel):
+            # each face's edge in its own colour closes the hairline seams antialiasing leaves
+            ax.add_collection(PolyCollection(screen[faces[sel], :2], facecolors=rgb[sel],
+                                             edgecolors=rgb[sel], linewidths=0.3, zorder=2 * k))
+        seg = lines[line_slab == k]
+        if len(seg):
+            ax.add_collection(LineCollection(screen[seg, :2], colors=[_EDGE_COLOUR],
+                                             linewidths=0.4 if edges else 0.9, zorder=2 * k + 1))
 
 
 def save_figure(fig, path, **kwargs):

@@ -8,9 +8,11 @@ triangles); cells that meet only along an edge or at a corner make a non-manifol
 
 - **STL** (binary, through meshio): triangles only; the format has no standard face
   attribute, so the material is not in it.
-- **PLY** (binary little-endian, written here: meshio's PLY writer leaves face data out):
-  per face the ``material`` code (:class:`gdfe.Material`) and its colour
-  (``red green blue``, :data:`gdfe.io.MATERIAL_COLOURS`).
+- **PLY** (ASCII, written here: meshio's PLY writer leaves face data out, and its reader
+  misreads face properties after the vertex list of a binary file): per face the ``material``
+  code (:class:`gdfe.Material`) and its colour (``red green blue``,
+  :data:`gdfe.io.MATERIAL_COLOURS`). meshio reads both (``cell_data["material"]``); PyVista
+  and other VTK readers keep the colours (cell data ``RGB``).
 - **OBJ** (text) with a material library ``NAME.mtl`` beside it: faces grouped by
   ``usemtl rigid|contract_top|contract_bottom|free_shrink``, each with its colour.
 - **FOLD** (JSON, the origami format): the surface's quadrilaterals with
@@ -38,14 +40,6 @@ __all__ = ["FilmSurface", "film_surface", "hex_surface", "write_stl", "write_ply
 EXPORT_FORMATS = ("stl", "obj", "ply", "fold", "html", "zip")
 
 
-def _write_bytes(path, data):
-    from gdfe.io import atomic_path
-
-    with atomic_path(path) as tmp:
-        tmp.write_bytes(data)
-    return Path(path)
-
-
 def write_stl(path, surface):
     """Binary STL of the surface's triangles (through meshio)."""
     import meshio
@@ -65,22 +59,28 @@ def _colours(material):
 
 
 def write_ply(path, surface):
-    """Binary PLY: vertices, triangles, and per face its ``material`` code and colour."""
-    v, t = surface.vertices, surface.triangles
-    mat = surface.triangle_material
+    """ASCII PLY: vertices [mm], triangles, and per face its ``material`` code and colour.
+
+    meshio reads the material back as ``cell_data["material"]``, PyVista (VTK) the colour as
+    cell data ``RGB``; both keep the vertices and triangles in the order written.
+    """
+    import io
+
+    from gdfe.io import write_text
+
+    v, t = np.asarray(surface.vertices, float), np.asarray(surface.triangles)
+    mat = np.asarray(surface.triangle_material)
     header = "\n".join([
-        "ply", "format binary_little_endian 1.0", "comment gdfe film surface; material: 0 rigid, "
+        "ply", "format ascii 1.0", "comment gdfe film surface [mm]; material: 0 rigid, "
         "1 contract_top, 2 contract_bottom, 3 free_shrink",
         f"element vertex {len(v)}", "property float x", "property float y", "property float z",
         f"element face {len(t)}", "property list uchar int vertex_indices", "property uchar material",
-        "property uchar red", "property uchar green", "property uchar blue", "end_header", ""]).encode("ascii")
-    vert = v.astype("<f4").tobytes()
-    face = np.zeros(len(t), dtype=[("n", "u1"), ("idx", "<i4", (3,)), ("material", "u1"), ("rgb", "u1", (3,))])
-    face["n"] = 3
-    face["idx"] = t
-    face["material"] = mat
-    face["rgb"] = _colours(mat)
-    return _write_bytes(path, header + vert + face.tobytes())
+        "property uchar red", "property uchar green", "property uchar blue", "end_header", ""])
+    body = io.StringIO()
+    np.savetxt(body, v.astype(np.float32), fmt="%.9g")
+    faces = np.column_stack([np.full(len(t), 3), t, mat, _colours(mat)]).astype(np.int64)
+    np.savetxt(body, faces, fmt="%d")
+    return write_text(path, header + body.getvalue())
 
 
 def write_obj(path, surface):

@@ -135,8 +135,11 @@ def strip_deviation(plan, result):
 def plot_deviation(deviation, path, title=None):
     """A PNG overlay of the target (grey) and the aligned simulated mid-line, coloured by segment.
 
-    Each segment is labelled ``index: largest deviation [mm]``; the mid-line point farthest
-    from the target is marked.
+    Each segment is labelled ``index: largest deviation [mm]``. The pair of points at the
+    largest deviation, :attr:`Deviation.max` (the symmetric Hausdorff distance, the number the
+    default title quotes), is joined by a red line: a mid-line point and its closest point on
+    the target, or a target point and its closest point on the mid-line, whichever is farther.
+    The legend sits beside the axes, inside the picture.
 
     Returns
     -------
@@ -148,7 +151,7 @@ def plot_deviation(deviation, path, title=None):
 
     plt = pyplot()
     dev = deviation
-    fig, ax = plt.subplots(figsize=(9, 6))
+    fig, ax = plt.subplots(figsize=(9, 6), layout="constrained")
     T, A = dev.target, dev.aligned
     ax.plot(T[:, 0], T[:, 1], "-", color="0.65", lw=6, solid_capstyle="round", label="target")
     cmap = plt.get_cmap("tab10")
@@ -164,13 +167,19 @@ def plot_deviation(deviation, path, title=None):
         m = idx[len(idx) // 2]
         if row["max_mm"] is not None:
             ax.annotate(f"{k}: {row['max_mm']:.2f}", A[m], fontsize=7, xytext=(4, 4), textcoords="offset points")
-    d_to, close = _closest_on_polyline(A, T)
-    i = int(np.argmax(d_to))
-    ax.plot([A[i, 0], close[i, 0]], [A[i, 1], close[i, 1]], "r-", lw=1)
-    ax.plot(A[i, 0], A[i, 1], "ro", ms=4, label=f"largest distance to the target {d_to[i]:.3f} mm")
-    ax.plot([], [], "-", color=cmap(0), label="GDFE mid-line (colour: segment, black: hinge)")
+    # the two one-sided distances; the larger is dev.max
+    d_to, close_to = _closest_on_polyline(A, T)
+    d_from, close_from = _closest_on_polyline(T, A)
+    i, j = int(np.argmax(d_to)), int(np.argmax(d_from))
+    if d_to[i] >= d_from[j]:
+        a, b, where = A[i], close_to[i], "mid-line point farthest from the target"
+    else:
+        a, b, where = T[j], close_from[j], "target point farthest from the mid-line"
+    ax.plot([a[0], b[0]], [a[1], b[1]], "r-", lw=1)
+    ax.plot(a[0], a[1], "ro", ms=4, label=f"largest deviation, max {dev.max:.3f} mm\n({where})")
+    ax.plot([], [], "-", color=cmap(0), label="GDFE mid-line\n(colour: segment, black: hinge)")
     ax.set_aspect("equal")
     ax.set(xlabel="mm", ylabel="mm",
-           title=title or f"deviation: max {dev.max:.3f} mm, RMS {dev.rms:.3f} mm")
-    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
+           title=title or f"deviation: max {dev.max:.3f} mm (Hausdorff), RMS {dev.rms:.3f} mm")
+    fig.legend(fontsize=8, loc="outside right upper")
     return save_figure(fig, Path(path), dpi=110)
