@@ -19,3 +19,21 @@ settings.load_profile(os.environ.get("GDFE_HYPOTHESIS_PROFILE", "default"))
 def table1():
     """Path of the paper's Table 1 shipped with the package."""
     return gdfe.TABLE1
+
+
+@pytest.fixture(scope="session")
+def coarse_study(tmp_path_factory):
+    """``coarse_study(name) -> (result, folder)``: a registered study run once per test session at its
+    coarsest resolution (the study-wide test and a study's own tests share the run)."""
+    import studies
+    from studies._common import RESOLUTIONS
+
+    runs = {}
+
+    def run(name):
+        if name not in runs:
+            out = tmp_path_factory.mktemp(f"study-{name}")
+            runs[name] = (studies.load(name).run(RESOLUTIONS[0], out), out)
+        return runs[name]
+
+    return run

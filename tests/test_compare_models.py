@@ -31,8 +31,8 @@ def test_bad_resolution():
 
 
 @pytest.mark.slow
-def test_coarse_run_headline_numbers(tmp_path):
-    res = cm.run("coarse", out=tmp_path)
+def test_coarse_run_headline_numbers(coarse_study):
+    res, tmp_path = coarse_study("compare")
     for name in ("compare_models.png", "compare_models_shapes.png", "compare_models_runtime.png",
                  "compare_models.json"):
         assert (tmp_path / name).is_file()

@@ -191,10 +191,10 @@ def test_sensitivity_generators_are_not_counted():
 
 
 @pytest.mark.slow
-def test_blind_benchmark_coarse(tmp_path):
+def test_blind_benchmark_coarse(coarse_study):
     """The benchmark at coarse resolution: the classes, the confusion matrices, Table 1, the cost and
     the scan checks are all there, and every headline is as expected."""
-    res = bd.run(resolution="coarse", out=tmp_path)
+    res, tmp_path = coarse_study("blind-diagnosis")
     acc = res["accuracy"]["0.03"]
     assert acc["share_null_or_outside"] >= 0.4
     assert set(acc["classes"]) == set(KINDS)
