@@ -9,6 +9,18 @@ measurements on 2 cores (``gdfe bench``; its last results, 10^3 to 10^6 cells, a
 (thin cells, ``nz`` large, converge more slowly), meant to decide before a run whether it
 fits the machine and whether it is long enough to ask first.
 
+Calibration. The time of a frame is fitted to the benchmark's corrugated sheets
+(``docs/bench/corrugation``; ``docs/bench/bench.json`` ``sheets``), whose measured seconds
+are those of a whole :func:`gdfe.simulate` call: the multilevel start of the large sheets and
+the penetration check after the solve are inside them, and so inside the estimate. The Figure 8
+plates of the same benchmark take up to about 1.4 times as long at 10^5 cells (they bend more
+and converge in more iterations); a command adds reading its input and writing its outputs,
+a few seconds at 10^5 cells. A 2-D design (:func:`estimate_design`) is several simulations of
+one film: its optimisation's folds, each with an adjoint solve, and the folds that check the
+result; their cost in simulations is measured by ``gdfe study inverse2d``
+(``docs/bench/inverse2d``, its ``timing``), against the simulations of the same run so that
+the machine's load cancels.
+
 :func:`check_design_cells` refuses a design whose mesh alone would not fit in memory;
 :func:`check_run` refuses a simulation whose estimate does not (both raise
 :class:`gdfe.GdfeError` with the estimate); :attr:`Estimate.large` says when a run is long
@@ -22,8 +34,8 @@ import os
 
 from gdfe._validation import GdfeError
 
-__all__ = ["Estimate", "estimate_run", "machine_memory", "check_design_cells", "check_run", "format_bytes",
-           "format_seconds", "LARGE_SECONDS", "LARGE_MEMORY_FRACTION"]
+__all__ = ["Estimate", "estimate_run", "estimate_design", "machine_memory", "check_design_cells", "check_run",
+           "format_bytes", "format_seconds", "LARGE_SECONDS", "LARGE_MEMORY_FRACTION", "CALIBRATION"]
 
 #: Bytes per cell of a design's mesh and cell data (points, hexahedra, indices, materials).
 MESH_BYTES_PER_CELL = 600
@@ -40,6 +52,18 @@ SECONDS_AT = (1e4, 1.60)
 TIME_EXPONENTS = ((1e5, 1.21), (float("inf"), 1.86))
 #: Seconds every frame costs whatever its size (set-up, the penetration check, Python).
 FRAME_OVERHEAD_SECONDS = 0.02
+#: One evaluation of the 2-D design's optimisation (a fold continued from the last one, its adjoint
+#: solve and the gradient), in simulations of the same film from the flat print: the evaluations'
+#: mean time over the mean of the two simulations of the relaxed design's check in the same run of
+#: ``gdfe study inverse2d`` (docs/bench/inverse2d/inverse2d.json, ``timing``: ``per_evaluation_s``
+#: and ``seconds_by_step.relaxed_check``; 10^4 cells, 40 iterations, 43 evaluations).
+DESIGN_EVALUATION_SIMULATIONS = 1.34
+#: Simulations of a 2-D design besides its optimisation's evaluations: the start's fold, the
+#: relaxed design's and the printed design's checks (and the fold from the flat print that
+#: follows an optimisation).
+DESIGN_CHECK_SIMULATIONS = 3
+#: Where the time estimates come from, for the line printed with them.
+CALIBRATION = "fitted to gdfe bench on 2 cores (docs/bench), good to a factor of 2-3"
 #: A run estimated to take longer than this, or more than this fraction of the machine's memory,
 #: is *large*: the command line asks for ``--large`` before it starts one.
 LARGE_SECONDS = 600.0
@@ -101,6 +125,8 @@ class Estimate:
         Wall-clock time on 2 cores like the benchmark's.
     machine_bytes : int or None
         The machine's physical memory.
+    unit : str
+        What ``frames`` counts (``frames``; a 2-D design's ``simulations``).
     """
 
     cells: int
@@ -108,6 +134,7 @@ class Estimate:
     memory_bytes: float
     seconds: float
     machine_bytes: int | None
+    unit: str = "frames"
 
     @property
     def fits(self) -> bool:
@@ -122,7 +149,7 @@ class Estimate:
 
     def text(self) -> str:
         machine = "" if self.machine_bytes is None else f" (this machine has {format_bytes(self.machine_bytes)})"
-        frames = f" x {self.frames} frames" if self.frames > 1 else ""
+        frames = f" x {self.frames} {self.unit}" if self.frames > 1 else ""
         return (f"{self.cells:,} cells{frames}: about {format_seconds(self.seconds)} and "
                 f"{format_bytes(self.memory_bytes)} of memory{machine}")
 
@@ -147,6 +174,34 @@ def estimate_run(cells, frames=1, points=None) -> Estimate:
     memory = BASE_BYTES + SOLVE_BYTES_PER_CELL * cells + (frames + 1) * points * 3 * 8
     return Estimate(cells=cells, frames=frames, memory_bytes=float(memory),
                     seconds=frames * _frame_seconds(cells), machine_bytes=machine_memory())
+
+
+def estimate_design(cells, iterations, points=None) -> Estimate:
+    """The estimated memory and time of a 2-D design (:func:`gdfe.inverse2d.design_surface`) of ``cells`` cells.
+
+    Parameters
+    ----------
+    cells : int
+        The film's cells (pixels).
+    iterations : int
+        L-BFGS-B iterations: about one evaluation each, plus the start's (a second phase, where
+        the flat print folds onto another branch, doubles them and is not counted).
+    points : int, optional
+        Vertices of the film (default: about 2 per cell).
+
+    Returns
+    -------
+    Estimate
+        Its ``frames`` are the simulations' equivalent: :data:`DESIGN_EVALUATION_SIMULATIONS` per
+        evaluation and :data:`DESIGN_CHECK_SIMULATIONS` (one more after an optimisation), each
+        costed as one frame of :func:`estimate_run`.
+    """
+    iterations = int(iterations)
+    evaluations = 1 + iterations
+    simulations = DESIGN_EVALUATION_SIMULATIONS * evaluations + DESIGN_CHECK_SIMULATIONS + (iterations > 0)
+    one = estimate_run(cells, 1, points)
+    return dataclasses.replace(one, frames=max(1, int(round(simulations))), seconds=simulations * one.seconds,
+                               unit="simulations")
 
 
 def check_design_cells(name, cells):

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import math
 import sys
 from pathlib import Path
@@ -23,6 +24,8 @@ from gdfe._plotting import pyplot  # noqa: F401  (the studies take pyplot from h
 from gdfe._validation import GdfeError, check_choice
 
 RESOLUTIONS = ("coarse", "default", "fine")
+
+log = logging.getLogger(__name__)
 
 
 def check_resolution(resolution):
@@ -89,6 +92,30 @@ def headline(name, ours, paper=None, tol=None, kind="abs", expect=True, unit="",
     return {"name": name, "ours": ours_f,
             "paper": paper, "paper_text": paper_text, "tolerance": tol_text, "unit": unit,
             "expect": bool(expect), "holds": bool(holds), "passed": bool(holds) == bool(expect), "note": note}
+
+
+def progress(items, what, total=None):
+    """Iterate ``items``, reporting each step of a study's sweep through the log.
+
+    Each step is a debug record of the logger ``studies._common`` with a ``progress``
+    attribute (``{"event": "steps", "stage": what, "step": k, "total": n}``, step k of n under way): the command line
+    (``gdfe study``, ``gdfe report``) shows it as a bar on a terminal and as a line every ~10 s
+    elsewhere; without it nothing is printed.
+
+    Parameters
+    ----------
+    items : iterable
+    what : str
+        What is swept (``"specimens"``, ``"levels"``).
+    total : int, optional
+        Steps (default ``len(items)`` where it has one).
+    """
+    if total is None and hasattr(items, "__len__"):
+        total = len(items)
+    for k, item in enumerate(items):
+        log.debug("%s %d/%s", what, k + 1, total if total is not None else "?",
+                  extra={"progress": {"event": "steps", "stage": what, "step": k + 1, "total": total}})
+        yield item
 
 
 def median_time(fn, repeats):

@@ -15,7 +15,6 @@ import html
 import importlib
 import logging
 import platform
-import sys
 import time
 import traceback
 from pathlib import Path
@@ -109,7 +108,9 @@ def build_report(out, resolution="default", names=None, progress=None):
     names : list of str, optional
         Studies to run (default: all of ``studies.STUDIES``).
     progress : bool, optional
-        Show a progress bar (default: when stderr is a terminal).
+        Report each study as it starts and ends through the log (default True): info records
+        of ``studies.validation_report`` with a ``progress`` attribute, which ``gdfe report``
+        shows as a bar on a terminal and as lines elsewhere; False: none.
 
     Returns
     -------
@@ -128,21 +129,22 @@ def build_report(out, resolution="default", names=None, progress=None):
         raise GdfeError(f"names: unknown studies {unknown}; expected some of {', '.join(STUDIES)}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    if progress is None:
-        progress = sys.stderr.isatty()
-    try:
-        from tqdm.auto import tqdm
-    except ModuleNotFoundError:
-        tqdm = None
+    progress = progress is None or bool(progress)
     t0 = time.perf_counter()
     records, results = [], {}
-    bar = tqdm(names, desc="report", disable=not progress) if tqdm else names
-    for name in bar:
-        if tqdm and progress:
-            bar.set_postfix_str(name)
+    for k, name in enumerate(names):
+        step = {"event": "study", "name": name, "step": k + 1, "total": len(names)}
+        if progress:
+            log.info("study %s (%d/%d)", name, k + 1, len(names), extra={"progress": {**step, "status": None}})
         rec, res = _run_one(name, STUDIES[name], resolution, out)
+        if progress:
+            log.info("study %s: %s, %.1f s", name, rec["status"], rec.get("seconds", 0.0),
+                     extra={"progress": {**step, "status": rec["status"], "seconds": rec.get("seconds", 0.0)}})
         records.append(rec)
         results[name] = res
+    if progress:
+        log.info("building the interactive view",
+                 extra={"progress": {"event": "stage", "stage": "building the interactive view"}})
     try:
         view_html, view_rec = interactive_view()
     except Exception as exc:  # the view must not stop the report

@@ -162,11 +162,11 @@ def test_vtu_series_and_png(tmp_path):
 def test_cli_hinge_json(capsys):
     assert main(["hinge", "--length", "1.6", "--d", "0.33", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
-    for key in ("alpha_rad", "alpha_eq1_rad", "R", "iterations", "converged", "seconds", "n_elements"):
+    for key in ("fold_angle_rad", "fold_angle_eq1_rad", "R", "iterations", "converged", "seconds", "n_cells"):
         assert key in out
     assert out["converged"] is True
-    assert abs(out["alpha_rad"] - out["alpha_eq1_rad"]) < 0.03
-    assert out["alpha_eq1_rad"] == pytest.approx(1.684, abs=1e-3)
+    assert abs(out["fold_angle_rad"] - out["fold_angle_eq1_rad"]) < 0.03
+    assert out["fold_angle_eq1_rad"] == pytest.approx(1.684, abs=1e-3)
 
 
 def test_cli_hinge_writes_files(tmp_path, capsys):

@@ -12,11 +12,11 @@ HINGE = ["fem", "hinge", "--length", "1.6", "--d", "0.33", "--resolution", "coar
 def test_hinge_json_reports_angle_curvature_and_solver_state(capsys):
     assert main(HINGE + ["--json"]) == 0
     out = json.loads(capsys.readouterr().out)
-    for key in ("alpha_rad", "kappa_per_mm", "timoshenko_kappa_per_mm", "converged", "seconds",
+    for key in ("fold_angle_rad", "kappa_per_mm", "timoshenko_kappa_per_mm", "converged", "seconds",
                 "dofs", "iterations", "residual"):
         assert key in out
     assert out["converged"] is True and out["nonlinear"] is False
-    assert out["alpha_rad"] > 0 and out["dofs"] > 0
+    assert out["fold_angle_rad"] > 0 and out["dofs"] > 0
 
 
 def test_hinge_nonlinear_text(capsys):

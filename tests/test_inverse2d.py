@@ -16,7 +16,8 @@ from gdfe.inverse2d import (Film, Objective, block_size, closest_reachable, cont
                             design_surface, fold, halftone, initial_coating, make_target, min_feature_ok, project,
                             scale_for, target_start, threshold)
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+#: The page of the documentation that shows the 2-D design command.
+GUIDE = Path(__file__).resolve().parents[1] / "docs" / "inverse2d.md"
 
 
 # -- the gradient ---------------------------------------------------------------------------------------------
@@ -266,9 +267,10 @@ def test_design_target_bad_inputs(tmp_path, capsys):
 
 
 def test_readme_design_command(tmp_path, monkeypatch, capsys):
-    """The README's 2-D design command runs as written (in seconds) and prints what the README quotes."""
+    """The guide's 2-D design command (docs/inverse2d.md) runs as written (in seconds) and prints what the
+    guide quotes."""
     monkeypatch.chdir(tmp_path)
-    commands = [line.strip() for block in re.findall(r"```bash\n(.*?)```", README.read_text(), flags=re.S)
+    commands = [line.strip() for block in re.findall(r"```bash\n(.*?)```", GUIDE.read_text(), flags=re.S)
                 for line in block.splitlines() if line.strip().startswith("gdfe design --target")]
     assert commands
     argv = shlex.split(commands[0])

@@ -2,7 +2,8 @@
 
 Conventions of every subcommand: ``--json`` prints the result as JSON on standard output
 instead of the text (``--json -`` too), ``--json FILE.json`` writes it there and prints the
-text; an output folder (``--out DIR``) is written by :class:`gdfe.io.OutputFolder`, complete
+text, in the one vocabulary of :mod:`gdfe.cli._vocabulary` (old keys kept as aliases for a release); an
+output folder (``--out DIR``) is written by :class:`gdfe.io.OutputFolder`, complete
 or marked incomplete, a rerun replacing it; a run that the estimate calls large
 (:mod:`gdfe.resources`) starts only with ``--large``.
 """
@@ -43,10 +44,15 @@ def json_arg(p, what="the result", dest="json"):
                         "to FILE.json beside the text")
 
 
-def emit(obj, as_json, text: str) -> None:
+def emit(obj, as_json, text: str, command=None) -> None:
     """The result: ``text``, or ``obj`` as JSON on standard output (``as_json`` True or ``"-"``), or both
-    (``as_json`` a file name: the JSON written there, the text printed with a line saying so)."""
-    payload = finite_json(obj)
+    (``as_json`` a file name: the JSON written there, the text printed with a line saying so).
+
+    The JSON is in the one vocabulary (:mod:`gdfe.cli._vocabulary`), with the old keys of ``command``
+    (``"hinge"``, ``"fem hinge"``) and of the library's dictionaries kept as aliases for a release."""
+    from gdfe.cli._vocabulary import with_aliases
+
+    payload = finite_json(with_aliases(obj, command))
     if as_json is True or as_json == "-":
         print(json.dumps(payload, indent=2, allow_nan=False))
         return
@@ -237,7 +243,7 @@ def solve(design, args, options=None, source=None):
     confirmed with ``--large``. The solve shows its progress (:class:`SolveProgress`).
     """
     import gdfe
-    from gdfe.cli._progress import SolveProgress, progress_mode
+    from gdfe.cli._progress import SolveProgress, announce_estimate, progress_mode
     from gdfe.resources import estimate_run
     from gdfe.solver import METHODS, MULTILEVEL_CELLS
 
@@ -264,16 +270,17 @@ def solve(design, args, options=None, source=None):
         if est.large and not getattr(args, "large", False):
             raise GdfeError(f"this run is large: {est.text()}; pass --large to run it anyway, or coarsen the design "
                             "(or fewer --steps)")
-        if est.seconds > 30 and progress_mode(args) is not False:
-            print(f"gdfe: estimated {est.text()}", file=sys.stderr)
+        announce_estimate(est, progress_mode(args))
     multilevel = opts.get("init", "auto") == "auto" and design.n_cells > MULTILEVEL_CELLS
     with SolveProgress(progress_mode(args), frames=steps if isinstance(steps, int) else 1, cells=design.n_cells,
                        multilevel=multilevel, contact=opts.get("contact", "auto")):
         return gdfe.simulate(design, **opts)
 
 
-def write_outputs(result, out, name, summary, progress=None):
-    """The VTU series, a PNG (its title marked NOT CONVERGED where it is not) and ``result.json`` in ``out``."""
+def write_outputs(result, out, name, summary, progress=None, command=None):
+    """The VTU series, a PNG (its title marked NOT CONVERGED where it is not) and ``result.json`` in ``out``
+    (``summary`` in the vocabulary of ``command``'s JSON, :func:`emit`)."""
+    from gdfe.cli._vocabulary import with_aliases
     from gdfe.io import render_png, write_json, write_series
 
     out.mkdir(parents=True, exist_ok=True)
@@ -283,7 +290,7 @@ def write_outputs(result, out, name, summary, progress=None):
         title = f"NOT CONVERGED (residual {result.residual:.2g} after {result.iterations} iterations): {title}"
     png = render_png(result, out / f"{name}.png", title=title)
     files = {"pvd": str(pvd), "png": str(png), "json": str(out / "result.json")}
-    write_json(out / "result.json", {**summary, "files": files})
+    write_json(out / "result.json", with_aliases({**summary, "files": files}, command))
     return files
 
 

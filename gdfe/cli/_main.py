@@ -12,6 +12,14 @@ line saying how to report it. ``--debug`` prints the traceback of user errors to
 stops a command with one line saying what it left (an output folder is then marked
 incomplete) and exit status 130.
 
+With ``--json`` an error is JSON too: besides its line on standard error, the command prints
+(on standard output; with ``--json FILE.json`` into that file, in place of the result) one
+object, ``{"error": {"type": ..., "message": ..., "argument": ..., "exit_status": ...}}``:
+``type`` is ``"usage"`` for a mistake in the arguments (exit status 2), ``"GdfeError"`` for a
+user error (1), ``"interrupted"`` for Ctrl-C (130) and ``"bug"`` for any other exception
+(whose traceback still goes to standard error; ``exit_status`` 1, the status of a Python
+error); ``argument`` is the option or argument the message names, where it names one.
+
 The global options (``-v``, ``-q``, ``--progress``, ``--debug``) are accepted before or
 after the subcommand; the log says each distinct warning once.
 """
@@ -20,17 +28,20 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import contextvars
+import json
 import logging
+import re
 import sys
 import traceback
 
 from gdfe._validation import GdfeError
-from gdfe.cli import bench, calibrate, design, diagnose, fem, hinge, report, simulate, study, view
+from gdfe.cli import bench, calibrate, data, design, diagnose, fem, hinge, report, simulate, study, view
 
 __all__ = ["main", "build_parser", "SUBCOMMANDS"]
 
 #: The modules of the subcommands, in the order of ``gdfe --help``.
-SUBCOMMANDS = (hinge, simulate, design, view, fem, study, report, calibrate, diagnose, bench)
+SUBCOMMANDS = (hinge, simulate, design, view, fem, study, report, calibrate, diagnose, data, bench)
 
 #: Where bugs are reported.
 ISSUES = "the project's issue tracker"
@@ -42,9 +53,11 @@ def _global_options(parser, top):
 
     d = (lambda v: v) if top else (lambda v: argparse.SUPPRESS)
     parser.add_argument("-v", "--verbose", action="store_true", default=d(False), help="log what the solver does")
-    parser.add_argument("-q", "--quiet", action="store_true", default=d(False), help="no progress bars")
+    parser.add_argument("-q", "--quiet", action="store_true", default=d(False),
+                        help="no progress (bars, lines, estimates) on standard error")
     parser.add_argument("--progress", action="store_true", default=d(False),
-                        help="progress bars even when standard error is not a terminal")
+                        help="progress bars even when standard error is not a terminal (else: a line every "
+                             "~10 s there)")
     parser.add_argument("--debug", action="store_true", default=d(False),
                         help="print the traceback of every error, user errors included")
     parser.add_argument("--version", action="version", version=f"gdfe {__version__}")
@@ -59,11 +72,83 @@ def _subparsers(parser):
                 yield from _subparsers(sub)
 
 
+#: Where the JSON of the command being parsed goes: None (no --json), "-" (standard output) or a file.
+_JSON_TARGET = contextvars.ContextVar("gdfe_json_target", default=None)
+
+
+def _json_target(argv):
+    """Where ``--json`` in ``argv`` sends the JSON (read before parsing, for the errors of parsing):
+    None, ``"-"`` or ``FILE.json``."""
+    target = None
+    for i, token in enumerate(argv):
+        if token == "--":
+            break
+        if token == "--json":
+            nxt = argv[i + 1] if i + 1 < len(argv) else None
+            target = nxt if nxt is not None and (nxt == "-" or nxt.lower().endswith(".json")) else "-"
+        elif token.startswith("--json="):
+            target = token.partition("=")[2] or "-"
+    return target
+
+
+def _argument(message):
+    """The option or argument an error message names (``--d: expected ...``, ``argument --length/-L:
+    ...``, ``length: expected ...``), or None."""
+    for pattern in (r"^argument ([^\s/:]+)", r"arguments are required: ([^\s,/]+)", r"unrecognized arguments: (\S+)",
+                    r"^(--?[A-Za-z][\w-]*)\b", r"^([A-Za-z_]\w*)(?::|=\S)"):
+        m = re.search(pattern, message)
+        if m:
+            return m.group(1)
+    return None
+
+
+def _options(parser, args):
+    """The running subcommand's arguments: dest -> the option as typed (``length`` -> ``--length``; a
+    positional argument keeps its name), to name in an error the option that a library argument came from."""
+    prog = _name(args)
+    for sub in _subparsers(parser):
+        if sub.prog == prog:
+            return {a.dest: (next((o for o in a.option_strings if o.startswith("--")), a.option_strings[0])
+                             if a.option_strings else a.dest) for a in sub._actions}
+    return {}
+
+
+def error_object(kind, message, exit_status, options=None):
+    """The JSON of an error: ``{"error": {"type", "message", "argument" (where named), "exit_status"}}``;
+    ``options`` (dest -> option) turns a library argument's name into the command's option."""
+    err = {"type": kind, "message": message}
+    argument = _argument(message)
+    if argument is not None and options:
+        argument = options.get(argument, argument)
+    if argument is not None:
+        err["argument"] = argument
+    err["exit_status"] = exit_status
+    return {"error": err}
+
+
+def _emit_error(target, kind, message, exit_status, options=None):
+    """With ``--json`` (``target`` not None), the error as JSON on standard output or into the file."""
+    if target is None:
+        return
+    text = json.dumps(error_object(kind, message, exit_status, options), indent=2)
+    if target == "-":
+        print(text, flush=True)
+        return
+    from gdfe.io import write_text
+
+    try:
+        write_text(target, text + "\n")
+    except OSError:  # the file cannot be written (often the very error): its one line on standard error says it
+        pass
+
+
 class _Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line on standard error (exit status 2), naming
-    the command and where its options are listed, instead of the usage block and a line."""
+    the command and where its options are listed, instead of the usage block and a line; with
+    ``--json`` also a JSON error object (:func:`error_object`, type ``"usage"``)."""
 
     def error(self, message):
+        _emit_error(_JSON_TARGET.get(), "usage", f"{message} (options: {self.prog} --help)", 2)
         self.exit(2, f"{self.prog}: error: {message} (options: {self.prog} --help)\n")
 
 
@@ -125,22 +210,29 @@ def main(argv=None) -> int:
     """Run the ``gdfe`` command line; return the exit status."""
     parser = build_parser()
     argv = list(sys.argv[1:] if argv is None else argv)
-    args = parser.parse_args(argv)
+    token = _JSON_TARGET.set(_json_target(argv))
+    try:
+        args = parser.parse_args(argv)
+    finally:
+        _JSON_TARGET.reset(token)
     args.argv = argv
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
     with _logging(args.verbose):
-        return _dispatch(args)
+        return _dispatch(args, _options(parser, args))
 
 
-def _dispatch(args):
-    """Run the subcommand; turn user errors, Ctrl-C and a closed pipe into an exit status."""
+def _dispatch(args, options=None):
+    """Run the subcommand; turn user errors, Ctrl-C and a closed pipe into an exit status (and, with
+    ``--json``, a JSON error object)."""
+    target = getattr(args, "json", None) or getattr(args, "json_out", None)
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt as exc:
         left = "; ".join(getattr(exc, "gdfe_left", [])) or "no output folder was being written"
         print(f"{_name(args)}: interrupted: {left}", file=sys.stderr)
+        _emit_error(target, "interrupted", f"interrupted: {left}", 130)
         return 130
     except BrokenPipeError:  # the reader of our output went away (gdfe ... | head): stop quietly
         import os
@@ -153,13 +245,15 @@ def _dispatch(args):
             traceback.print_exc()
         text = " ".join(str(exc).split())  # one line, whatever a library underneath put in it
         print(f"{_name(args)}: error: {text}", file=sys.stderr)
+        _emit_error(target, "GdfeError", text, 1, options)
         return 1
-    except Exception:
+    except Exception as exc:
         from gdfe import __version__
 
         print(f"{_name(args)}: internal error: this is a bug in gdfe {__version__}, not a problem "
               f"with your input. Please report it to {ISSUES} with the command line and the traceback "
               f"below.", file=sys.stderr)
+        _emit_error(target, "bug", f"{type(exc).__name__}: {' '.join(str(exc).split())}", 1)
         raise
 
 

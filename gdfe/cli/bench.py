@@ -63,7 +63,7 @@ def run(args):
     with noting(folder), (folder or nullcontext()):
         res = bench.run(quick=args.quick, sizes=args.sizes, fem=args.fem, out=args.out,
                         freeform_sizes=args.freeform_sizes, hinges=args.hinges)
-    emit(res, args.json, bench.format_table(res))
+    emit(res, args.json, bench.format_table(res), command="bench")
     accelerated = [r for r in res["hinges"] if r["method"] in ("newton", "newton-cg")]
     sheets = [r for r in res["sheets"] if "skipped" not in r]
     ok = all(r["converged"] for r in accelerated + sheets)

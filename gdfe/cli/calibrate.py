@@ -54,7 +54,7 @@ def run(args):
             d["R_at_d"] = {"d_mm": args.d, "h_mm": h, "R": R}
             block += f"\nR      {R:.4f} at d = {args.d:g} mm (Eq. 3 of this reading, h = {h:g} mm)"
         loo = held_out_rmse(tests, m)
-        d["held_out_rmse"] = loo
+        d["held_out_rmse_rad"] = loo
         block += f"\nLOO    {loo:.4f} rad (leave-one-test-out RMSE)"
         if args.model_out is not None:
             model = gdfe.DeformationModel.from_calibration(f, data=args.data, held_out_rmse=loo)
@@ -64,5 +64,5 @@ def run(args):
             block += "".join(f"\nWARNING: {w}" for w in model.warnings)
         out.append(d)
         text.append(block)
-    emit(out[0] if len(out) == 1 else out, args.json, "\n\n".join(text))
+    emit(out[0] if len(out) == 1 else out, args.json, "\n\n".join(text), command="calibrate")
     return 0

@@ -45,7 +45,7 @@ def run(args):
             raise GdfeError(f"--out: expected a data set name before it ({', '.join(DATA_SETS)})")
         listing = {name: {"path": str(_path(name)), "what": what} for name, (_, what) in DATA_SETS.items()}
         text = "\n".join(f"{name:8s} {entry['path']}\n         {entry['what']}" for name, entry in listing.items())
-        emit({"data_sets": listing}, args.json, text)
+        emit({"data_sets": listing}, args.json, text, command="data")
         return 0
     name = check_choice("name", args.name, tuple(DATA_SETS))
     path = _path(name)
@@ -58,5 +58,5 @@ def run(args):
         write_text(target, path.read_text())
         out["copied_to"] = str(target)
         text = f"wrote {target} (a copy of {path})"
-    emit(out, args.json, text)
+    emit(out, args.json, text, command="data")
     return 0

@@ -1,7 +1,10 @@
 """``gdfe design``: the paper's 1-D design pipeline (Sec. 4.2), and 2-D design from a target surface.
 
 1-D input: a couples file (``.toml``), a sketch (``.csv`` of points, or an ``.svg`` stroke) or
-``--text`` (letters of Figure 9). For each part: the strip pattern at the printer's pixel,
+``--text`` (letters of Figure 9; each distinct letter is designed and checked once, its part
+named after its first place among the distinct letters, ``02_o``, and its places in the text
+and count recorded, ``positions`` and ``count`` in ``design.json`` and ``copies`` in the print
+package's ``print.json``, so a repeated letter is printed that many times). For each part: the strip pattern at the printer's pixel,
 its masks (``NAME_top.png``, ``NAME_bottom.png``: 1-bit, black = passive, DPI set) and
 design file (``NAME.toml``), the design read back from those files and simulated
 (``NAME_check.pvd``), and its deviation from the target (``NAME_deviation.png``,
@@ -123,7 +126,8 @@ class _Choices:
 
 
 def _targets(args, ch):
-    """The parts to design: [(name, target)], and the file's [film] and [print] entries."""
+    """The parts to design: [(name, target)], the file's [film] and [print] entries, and for --text each
+    part's places in the text (1-based, spaces not counted): {name: [position, ...]}."""
     from gdfe import inverse as inv
 
     if (args.input is None) == (args.text is None):
@@ -131,13 +135,18 @@ def _targets(args, ch):
     if args.text is not None:
         glyphs = inv.text_glyphs(args.text)
         ch.set("input", f"letters {args.text!r} (Figure 9 glyphs)", "command line")
-        return [(f"{k + 1:02d}_{g.char}", inv.target_from_letter(g.char)) for k, g in enumerate(glyphs)], {}, {}
+        places = {}  # each distinct letter once, with where it stands in the text
+        for k, g in enumerate(glyphs):
+            places.setdefault(g.char, []).append(k + 1)
+        names = {c: f"{k + 1:02d}_{c}" for k, c in enumerate(places)}
+        return ([(names[c], inv.target_from_letter(c)) for c in places], {}, {},
+                {names[c]: where for c, where in places.items()})
     path = args.input
     suffix = path.suffix.lower()
     if suffix == ".toml":
         cf = inv.read_couples_toml(path)
         ch.set("input", f"couples {path}", "command line")
-        return [(cf.target.name, cf.target)], cf.film, cf.print
+        return [(cf.target.name, cf.target)], cf.film, cf.print, {}
     if suffix in (".csv", ".txt", ".svg"):
         P = inv.read_sketch(path, element_id=args.svg_id, spacing=DEFAULT_SPACING if args.spacing is None else args.spacing)
         ch.set("input", f"sketch {path} ({len(P)} points)", "command line")
@@ -146,7 +155,7 @@ def _targets(args, ch):
         target = inv.target_from_sketch(P, penalty, weights=None if weights == "plain" else "length",
                                         name=path.stem)
         ch.set("segments", target.fit.segmentation.m, "fitted")
-        return [(path.stem, target)], {}, {}
+        return [(path.stem, target)], {}, {}, {}
     raise GdfeError(f"input: expected a .toml (couples), .csv or .svg (sketch) file, got {path.name!r}")
 
 
@@ -190,10 +199,12 @@ def _run(args, begin_output):
     from gdfe import inverse as inv
     from gdfe.fabrication import write_print_package
     from gdfe.fabrication.strips import write_check, write_strip
+    from gdfe.cli._progress import Progress, announce_estimate, progress_mode
     from gdfe.io import write_json, write_series
+    from gdfe.resources import estimate_run
 
     ch = _Choices()
-    parts, film_file, print_file = _targets(args, ch)
+    parts, film_file, print_file, positions = _targets(args, ch)
     sketch = parts[0][1].kind == "sketch"
     h = ch.pick("h", args.h, film_file.get("h"), paper.H, "paper", "mm")
     if args.R is not None or ("R" in film_file and args.d is None):
@@ -221,36 +232,41 @@ def _run(args, begin_output):
     out = args.out
     begin_output()
     records, designs, status = [], {}, 0
-    cache = {}
-    for name, target in parts:
-        plan = inv.plan_strip(target, h=h, R=R, cell=pixel, w_min=w_min, rounding=rounding, clamp=bool(clamp),
-                              compensate=args.compensate)
-        source = args.text if args.text is not None else str(args.input)
-        couples = ", ".join(f"({c.L:.4g}, {c.r:.4g})" for c in target.couples)
-        printed = write_strip(plan, out, name, width, film,
-                              comment=f"gdfe design: {target.kind} {target.name!r} from {source}\n"
-                                      f"couples (L, r) [mm]: {couples}")
-        designs[name] = printed.design
-        rec = {"name": name, "target": target.summary(), "plan": plan.summary(),
-               "files": {k: str(v) for k, v in printed.files.items()}, "n_cells": printed.design.n_cells}
-        if not args.no_check:
-            key = (target.kind, target.name)
-            if key not in cache:
+    mode = progress_mode(args)
+    with Progress(mode, "designing", total=len(parts), unit=" part") as progress:
+        for name, target in parts:
+            progress.step(name)
+            plan = inv.plan_strip(target, h=h, R=R, cell=pixel, w_min=w_min, rounding=rounding,
+                                  clamp=bool(clamp), compensate=args.compensate)
+            source = args.text if args.text is not None else str(args.input)
+            couples = ", ".join(f"({c.L:.4g}, {c.r:.4g})" for c in target.couples)
+            printed = write_strip(plan, out, name, width, film,
+                                  comment=f"gdfe design: {target.kind} {target.name!r} from {source}\n"
+                                          f"couples (L, r) [mm]: {couples}")
+            designs[name] = printed.design
+            rec = {"name": name, "target": target.summary(), "plan": plan.summary(),
+                   "files": {k: str(v) for k, v in printed.files.items()}, "n_cells": printed.design.n_cells}
+            if name in positions:
+                rec["positions"], rec["count"] = positions[name], len(positions[name])
+            if not args.no_check:
+                announce_estimate(estimate_run(printed.design.n_cells), mode, f"the check of {name}: ")
                 check = inv.check_strip(plan, design=printed.design)
-                cache[key] = check
-            check = cache[key]
-            rep = write_check(check, out, name)
-            rec["check"] = rep
-            rec["files"]["check"] = str(write_series(check.result, out, name=f"{name}_check"))
-            if not check.converged:
-                status = 3
-        records.append(rec)
+                rep = write_check(check, out, name)
+                rec["check"] = rep
+                rec["files"]["check"] = str(write_series(check.result, out, name=f"{name}_check"))
+                if not check.converged:
+                    status = 3
+            records.append(rec)
+            progress.advance()
     pkg = write_print_package(out / "print.zip", designs, d=d, K=K,
                               source=args.text if args.text is not None else args.input,
-                              extra={"made_by": "gdfe design", "w_min_mm": w_min, "strip_width_mm": width})
+                              extra={"made_by": "gdfe design", "w_min_mm": w_min, "strip_width_mm": width,
+                                     **({"copies": {n: len(p) for n, p in positions.items()}} if positions else {})})
     summary = {"choices": ch.as_dict(), "parts": records, "package": str(pkg)}
+    if positions:
+        summary["letters"] = {"text": args.text, "count": sum(map(len, positions.values())), "distinct": len(positions)}
     write_json(out / "design.json", summary)
-    emit(summary, args.json, _text(ch, records, out, pkg))
+    emit(summary, args.json, _text(ch, records, out, pkg), command="design")
     return status
 
 
@@ -258,7 +274,9 @@ def _text(ch, records, out, pkg):
     lines = ["gdfe design: choices", ch.text()]
     for rec in records:
         plan = rec["plan"]
-        lines.append(f"  {rec['name']}: {len(rec['target']['couples'])} couples, {plan['hinges']} hinges, strip "
+        copies = (f" (x{rec['count']}: letters {', '.join(map(str, rec['positions']))} of the text)"
+                  if rec.get("count", 1) > 1 else "")
+        lines.append(f"  {rec['name']}{copies}: {len(rec['target']['couples'])} couples, {plan['hinges']} hinges, strip "
                      f"{plan['strip_mm']:.3f} mm, {rec['n_cells']} cells; masks {Path(rec['files']['top']).name}, "
                      f"{Path(rec['files']['bottom']).name}; design {Path(rec['files']['design']).name}")
         chk = rec.get("check")
@@ -284,8 +302,9 @@ def _text(ch, records, out, pkg):
 
 # -- 2-D design from a target surface -------------------------------------------------------------------------
 def _run_target(args, begin_output):
-    from gdfe.cli._progress import bar, progress_mode
+    from gdfe.cli._progress import Progress, announce_estimate, progress_mode
     from gdfe.inverse2d import design_surface, make_target, write_design
+    from gdfe.resources import estimate_design
     from gdfe.model import as_model, paper_model
 
     ch = _Choices()
@@ -311,19 +330,20 @@ def _run_target(args, begin_output):
     tolerance = ch.pick("tolerance", args.tolerance, None, 0.01 * float(max(target.film_size)),
                         "default: 1 % of the film's size", "mm")
 
-    progress = bar(None, progress_mode(args), desc="designing", unit=" fold", leave=False)
+    mode = progress_mode(args)
+    if isinstance(pixel, (int, float)) and pixel > 0 and isinstance(iterations, int) and iterations >= 0:
+        cells = math.prod(max(1, round(float(v) / pixel)) for v in target.film_size)
+        announce_estimate(estimate_design(cells, iterations), mode)
 
-    def callback(rec):
-        progress.update(1)
-        progress.set_postfix_str(f"RMS {rec['rms_mm']:.3g} mm", refresh=False)
+    def callback(rec):  # the bar counts folds: L-BFGS-B evaluations, about one per iteration
+        n = rec["evaluation"]
+        progress.step(f"after {n} fold{'s' if n != 1 else ''} (RMS {rec['rms_mm']:.3g} mm)")
+        progress.advance()
 
-    try:
+    with Progress(mode, "designing", total=iterations + 1 if isinstance(iterations, int) else None,
+                  unit=" fold") as progress:
         result = design_surface(target, pixel=pixel, w_min=w_min, d=d, h=h, model=model, iterations=iterations,
-                                projection=projection, tolerance_mm=tolerance,
-                                callback=callback if progress is not None else None)
-    finally:
-        if progress is not None:
-            progress.close()
+                                projection=projection, tolerance_mm=tolerance, callback=callback)
     opts = result.options
     ch.set("block", f"{opts['block_pixels']} x {opts['block_pixels']} pixels", "from w_min and pixel")
     ch.set("filter radius", opts["filter_radius_mm"], "default: two blocks", "mm")
@@ -331,7 +351,7 @@ def _run_target(args, begin_output):
     name = target.name
     written = write_design(result, args.out, name=name)
     summary = written.summary
-    emit(summary, args.json, _text_target(ch, result, args.out, written.files))
+    emit(summary, args.json, _text_target(ch, result, args.out, written.files), command="design")
     if not result.printable.converged:
         return 3
     return 0 if result.reached else 4

@@ -99,8 +99,8 @@ def _cmd_hinge(args) -> int:
     alpha, kappa = fold_angle(res), curvature(res)
     out = {"length_mm": args.length, "d_mm": args.d, "h_mm": args.h, "E_ratio": ratio,
            "eigenstrain": eps, "nu": args.nu, "width_mm": args.width,
-           "alpha_rad": alpha, "kappa_per_mm": kappa, "kappa_L_rad": kappa * args.length,
-           "timoshenko_kappa_per_mm": kT, "timoshenko_alpha_rad": kT * args.length,
+           "fold_angle_rad": alpha, "kappa_per_mm": kappa, "kappa_L_rad": kappa * args.length,
+           "timoshenko_kappa_per_mm": kT, "timoshenko_fold_angle_rad": kT * args.length,
            **res.summary(), "model": args.model if args.nonlinear else "linear",
            "resolution": args.resolution}
     text = "\n".join([
@@ -115,7 +115,7 @@ def _cmd_hinge(args) -> int:
         f"  curvature    {kappa:.4f} 1/mm (kappa L = {kappa * args.length:.4f} rad)",
         f"  Timoshenko   {kT:.4f} 1/mm (kappa L = {kT * args.length:.4f} rad)",
     ])
-    emit(out, args.json, text)
+    emit(out, args.json, text, command="fem hinge")
     return 0 if res.converged else 1
 
 
@@ -137,7 +137,7 @@ def _cmd_timoshenko_check(args) -> int:
                          f"{r['rel_error']:10.2e}")
         lines.append(f"  observed rate {c['rate']:.2f}, finest error {c['finest_error']:.2e}")
     ok = all(c["finest_error"] < 0.01 for c in checks)
-    emit({"checks": checks, "passed": ok}, args.json, "\n".join(lines))
+    emit({"checks": checks, "passed": ok}, args.json, "\n".join(lines), command="fem timoshenko-check")
     return 0 if ok else 1
 
 
@@ -156,5 +156,5 @@ def _cmd_calibrate(args) -> int:
         f"  RMSE                 = {fit.rmse:.4f} rad (R^2 = {fit.r2:.3f})",
         f"  leave-one-out RMSE   = {fit.loo_rmse:.4f} rad",
     ])
-    emit(fit.as_dict(), args.json, text)
+    emit(fit.as_dict(), args.json, text, command="fem calibrate")
     return 0

@@ -71,40 +71,41 @@ def _run(args, folder):
     alpha = gdfe.fold_angle(res)
     R = float(design.meta["R"])
     out = {
-        "alpha_rad": alpha,
-        "alpha_eq1_rad": float(gdfe.Calibration(K=K, h=args.h).alpha(args.length, args.d, args.h))
+        "fold_angle_rad": alpha,
+        "fold_angle_eq1_rad": float(gdfe.Calibration(K=K, h=args.h).alpha(args.length, args.d, args.h))
         if args.d is not None else None,
-        "alpha_eq2_rad": float(gdfe.angle_from_ratio(R, args.length, args.h)),
-        "R": R, "K": K if args.R is None else None, "L_mm": args.length, "d_mm": args.d, "h_mm": args.h,
-        "width_mm": args.width, "isotropy": args.isotropy, "nz": args.nz, "status": status_word(res),
+        "fold_angle_eq2_rad": float(gdfe.angle_from_ratio(R, args.length, args.h)),
+        "R": R, "K": K if args.R is None else None, "length_mm": args.length, "d_mm": args.d,
+        "h_mm": args.h, "width_mm": args.width, "panel_length_mm": design.meta.get("panel_length_mm", args.panel_length), "isotropy": args.isotropy, "nz": args.nz, "status": status_word(res),
         "iterations": res.iterations, "frame_iterations": list(res.frame_iterations), "converged": res.converged,
         "residual": res.residual,
-        "seconds": res.seconds, "n_elements": design.n_cells, "method": res.method,
+        "seconds": res.seconds, "n_cells": design.n_cells, "method": res.method,
     }
     if model is not None:
         out["model"] = model.as_dict()
-        out["alpha_model_rad"] = float(model.hinge_angle(args.length, args.d, args.h, args.process))
+        out["fold_angle_model_rad"] = float(model.hinge_angle(args.length, args.d, args.h, args.process))
     if model is not None:
-        ref = out["alpha_model_rad"]
+        ref = out["fold_angle_model_rad"]
     else:
-        ref = out["alpha_eq1_rad"] if out["alpha_eq1_rad"] is not None else out["alpha_eq2_rad"]
+        ref = out["fold_angle_eq1_rad"] if out["fold_angle_eq1_rad"] is not None else out["fold_angle_eq2_rad"]
     out["error_rad"] = alpha - ref
     out.update(contact_fields(res))
     if folder is not None:
-        out["title"] = f"hinge L={args.length:g} mm, alpha={alpha:.4f} rad"
+        out["title"] = f"hinge L={args.length:g} mm: fold angle {alpha:.4f} rad ({math.degrees(alpha):.1f} deg)"
         with folder:
             folder.status.update(converged=bool(res.converged), status=status_word(res))
-            out["files"] = write_outputs(res, args.out, "hinge", out, progress=progress_mode(args))
+            out["files"] = write_outputs(res, args.out, "hinge", out, progress=progress_mode(args),
+                                         command="hinge")
     d_text = f"d={args.d:g} mm" if args.d is not None else "R given (no d)"
     text = (f"hinge L={args.length:g} mm, {d_text}, h={args.h:g} mm, R={R:.4f}, nz={args.nz}\n"
             f"  GDFE fold angle  {alpha:.4f} rad ({math.degrees(alpha):.1f} deg)\n"
-            + (f"  model {model.name}: closed form {out['alpha_model_rad']:.4f} rad (error {out['error_rad']:+.4f})\n"
+            + (f"  model {model.name}: closed form {out['fold_angle_model_rad']:.4f} rad (error {out['error_rad']:+.4f})\n"
                if model is not None else
-               f"  Eq. 1            {out['alpha_eq1_rad']:.4f} rad (error {out['error_rad']:+.4f})\n"
-               if out["alpha_eq1_rad"] is not None else "")
-            + f"  Eq. 2 (1-R)L/h   {out['alpha_eq2_rad']:.4f} rad\n"
+               f"  Eq. 1            {out['fold_angle_eq1_rad']:.4f} rad (error {out['error_rad']:+.4f})\n"
+               if out["fold_angle_eq1_rad"] is not None else "")
+            + f"  Eq. 2 (1-R)L/h   {out['fold_angle_eq2_rad']:.4f} rad\n"
             f"  {iterations_text(res)}, residual {res.residual:.1e}, {res.seconds:.2f} s, {design.n_cells} elements\n"
             + contact_text(res)
             + (f"\n  wrote {args.out}/hinge.pvd (open in ParaView), hinge.png, result.json" if args.out else ""))
-    emit(out, args.json, text)
+    emit(out, args.json, text, command="hinge")
     return exit_status(res, allow_penetration=args.allow_penetration)

@@ -1,4 +1,9 @@
-"""``gdfe report``: every study run, and an HTML validation report of them (:mod:`studies.validation_report`)."""
+"""``gdfe report``: every study run, and an HTML validation report of them (:mod:`studies.validation_report`).
+
+Progress on standard error (:mod:`gdfe.cli._progress`): a line as each study ends (its name,
+ok/fail/error/skipped, seconds), and between them a bar on a terminal or a line every ~10 s
+elsewhere; ``-q`` silences both. Standard output holds the summary alone (text, or JSON).
+"""
 
 from __future__ import annotations
 
@@ -23,13 +28,15 @@ def register(sub):
 
 
 def run(args):
+    from gdfe.cli._progress import StudyProgress, progress_mode
     from studies import STUDIES
     from studies.validation_report import build_report
 
     names = args.only or list(STUDIES)
     folder = output_folder(args.out, args)
-    with noting(folder), using_scheduler(args.scheduler), folder:
-        summary = build_report(args.out, resolution=args.resolution, names=names)
+    mode = progress_mode(args)
+    with noting(folder), using_scheduler(args.scheduler), folder, StudyProgress(mode, "report", total=len(names)):
+        summary = build_report(args.out, resolution=args.resolution, names=names, progress=mode is not False)
     lines = [f"wrote {summary['index']}"]
     for s in summary["studies"]:
         lines.append(f"  {s['name']:<16} {s['status']:<8} {s.get('seconds', 0):6.1f} s  "

@@ -103,7 +103,7 @@ def _run(args, folder):
         summary["model"] = design.model.as_dict()
     summary.update(_measured(res, design))
     summary["bbox_mm"] = [res.points.min(0).tolist(), res.points.max(0).tolist()]
-    summary["title"] = f"{args.design.stem}: {design.n_cells} elements"
+    summary["title"] = f"{args.design.stem}: {_angles_text(summary).strip()}"
     exported = {}
     with folder:
         folder.status.update(converged=bool(res.converged), status=status_word(res))
@@ -112,7 +112,8 @@ def _run(args, folder):
 
             exported = export_result(res, args.out, args.design.stem, args.export, frame=args.export_frame)
             summary["exported"] = {k: str(v) for k, v in exported.items()}
-        summary["files"] = write_outputs(res, args.out, args.design.stem, summary, progress=progress_mode(args))
+        summary["files"] = write_outputs(res, args.out, args.design.stem, summary, progress=progress_mode(args),
+                                         command="simulate")
     text = (f"{args.design}: {design.n_cells} elements, {iterations_text(res)}, residual {res.residual:.1e}, "
             f"{res.seconds:.2f} s\n"
             + _film_text(design)
@@ -123,5 +124,5 @@ def _run(args, folder):
             + (f"\n  exported {', '.join(str(v) for v in exported.values())}" if exported else "")
             + ("\n  not exported: the solver did not converge" if args.export and not res.converged else ""))
     text += "\n" + contact_text(res)
-    emit(summary, args.json, text)
+    emit(summary, args.json, text, command="simulate")
     return exit_status(res, allow_penetration=args.allow_penetration)

@@ -1,4 +1,7 @@
-"""``gdfe view RESULT_DIR --html``: the simulated shape of a result folder as an interactive offline 3-D page."""
+"""``gdfe view RESULT_DIR``: the simulated shape of a result folder as an interactive offline 3-D page.
+
+The page is written by default beside the series (``RESULT_DIR/NAME.html``, ``NAME`` the
+series' name), or where ``--html PATH`` says; the command says where it wrote it."""
 
 from __future__ import annotations
 
@@ -17,7 +20,8 @@ def register(sub):
                                    "slider. No network access is needed to open it.")
     p.add_argument("result", type=file_path, help="result folder (with a .pvd series), or the .pvd file")
     p.add_argument("--html", nargs="?", const=True, default=None, metavar="PATH", type=new_file_path,
-                   help="write the page (default RESULT_DIR/NAME.html)")
+                   help="where to write the page (default, and with --html alone: RESULT_DIR/NAME.html, "
+                        "beside the .pvd series)")
     p.add_argument("--title", help="page title (default the series' name)")
     json_arg(p, "what was read and written")
     p.set_defaults(func=run)
@@ -52,11 +56,8 @@ def run(args):
                "vertices": int(data.frames.shape[1]), "quads": len(data.quads)}
     text = (f"{pvd}: {summary['frames']} frames (activation {data.activation[0]:g} to {data.activation[-1]:g}), "
             f"{summary['quads']} surface faces")
-    if args.html is None:
-        text += "\n  nothing written: add --html [PATH] for the interactive page"
-    else:
-        html = pvd.with_suffix(".html") if args.html is True else Path(args.html)
-        summary["html"] = str(write_viewer(html, data))
-        text += f"\n  wrote {html} (self-contained; open it in a browser)"
-    emit(summary, args.json, text)
+    html = pvd.with_suffix(".html") if args.html in (None, True) else Path(args.html)
+    summary["html"] = str(write_viewer(html, data))
+    text += f"\n  wrote {html} (self-contained; open it in a browser)"
+    emit(summary, args.json, text, command="view")
     return 0

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import dataclasses
 import io
-import json
 import math
 import os
 from pathlib import Path
@@ -183,14 +182,28 @@ def write_masks(masks, out_dir, name):
     return paths
 
 
-def _toml_value(v):
-    if isinstance(v, bool):
-        return "true" if v else "false"
+def _plain(v):
+    """A value of a design file's table as TOML takes it: numpy scalars as Python's, paths as text."""
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
     if isinstance(v, (int, np.integer)):
-        return str(int(v))
+        return int(v)
     if isinstance(v, (float, np.floating)):
-        return repr(float(v))
-    return json.dumps(str(v))  # a TOML basic string
+        return float(v)
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
+    return v if isinstance(v, (str, dict)) else str(v)
+
+
+def design_toml_text(tables, comment=None):
+    """The text of a design file: ``tables`` (table name -> {key: value}; None values left out, empty
+    tables too) written by ``tomli_w``, after ``comment``'s lines as TOML comments."""
+    import tomli_w
+
+    doc = {name: {k: _plain(v) for k, v in table.items() if v is not None} for name, table in tables.items()}
+    doc = {name: table for name, table in doc.items() if table}
+    head = "".join(f"# {line}\n" for line in (comment or "").splitlines())
+    return head + tomli_w.dumps(doc)
 
 
 def write_design_toml(path, files, pixel, film, comment=None, simulate=None):
@@ -217,13 +230,8 @@ def write_design_toml(path, files, pixel, film, comment=None, simulate=None):
     from gdfe.io import write_text
 
     path = Path(path)
-    lines = [f"# {line}" for line in (comment or "").splitlines()]
-    lines += ["[film]"] + [f"{k} = {_toml_value(v)}" for k, v in film.items() if v is not None]
-    lines += ["", "[masks]", f"pixel = {_toml_value(float(pixel))}"]
+    masks = {"pixel": float(pixel)}
     for key in ("top", "bottom", "film"):
         if key in files:
-            rel = os.path.relpath(Path(files[key]).resolve(), path.parent.resolve())
-            lines.append(f"{key} = {_toml_value(Path(rel).as_posix())}")
-    if simulate:
-        lines += ["", "[simulate]"] + [f"{k} = {_toml_value(v)}" for k, v in simulate.items()]
-    return write_text(path, "\n".join(lines) + "\n")
+            masks[key] = Path(os.path.relpath(Path(files[key]).resolve(), path.parent.resolve())).as_posix()
+    return write_text(path, design_toml_text({"film": film, "masks": masks, "simulate": simulate or {}}, comment))

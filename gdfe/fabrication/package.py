@@ -101,7 +101,7 @@ def write_print_package(path, designs, *, d=None, K=None, source=None, extra=Non
     Path
     """
     from gdfe import __version__
-    from gdfe.fabrication.masks import _toml_value
+    from gdfe.fabrication.masks import design_toml_text
     from gdfe.io import atomic_path
 
     if not isinstance(designs, dict):
@@ -126,11 +126,9 @@ def write_print_package(path, designs, *, d=None, K=None, source=None, extra=Non
             names["film"] = f"{name}_film.png"
             files[names["film"]] = _png_bytes(masks.film, pixel)
         film = _film_table(des, d, K)
-        toml = ["[film]"] + [f"{k} = {_toml_value(v)}" for k, v in film.items()]
-        toml += ["", "[masks]", f"pixel = {_toml_value(float(pixel))}"]
-        toml += [f"{k} = {_toml_value(v)}" for k, v in names.items()]
+        toml = design_toml_text({"film": film, "masks": {"pixel": float(pixel), **names}})
         names["design"] = f"{name}.toml"
-        files[names["design"]] = ("\n".join(toml) + "\n").encode()
+        files[names["design"]] = toml.encode()
         info_R.update(_free_ratios(des).round(12).tolist())
         parts.append({"name": name, "files": names, **masks.summary()})
     first = next(iter(designs.values()))

@@ -743,7 +743,8 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
                     energies.append(E)
                     break
         log.debug("newton %d: residual %.3e, error estimate %.3e, energy %.6e, mu %.1e",
-                  it, res, error, E, mu)
+                  it, res, error, E, mu,
+                  extra={"progress": {"event": "newton", "iteration": it, "residual_h": res, "estimate_h": error}})
         if steps.n > RELEASE_POINTS:
             _memory.release()
         energies.append(E)

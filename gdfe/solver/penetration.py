@@ -32,6 +32,7 @@ along it are not contact).
 from __future__ import annotations
 
 import dataclasses
+import logging
 
 import numpy as np
 import scipy.sparse as sp
@@ -43,6 +44,8 @@ from gdfe.io import surface_faces
 
 __all__ = ["GAP_RANGE_H", "Penetration", "PenetrationCheck", "check_penetration", "surface_triangles",
            "point_triangle_closest", "segments_cross_triangles"]
+
+log = logging.getLogger(__name__)
 
 #: Range of the gap search, in film thicknesses: facing parts of the surface further apart
 #: than this are reported as "no gap within range" (``min_gap_mm`` None).
@@ -313,7 +316,8 @@ class PenetrationCheck:
         # 1. crossing triangles: candidates whose centroids are closer than their radii summed
         edges = []  # the crossing edges
         hits_i, hits_j = [], []
-        for i, j in tri.close_pairs():
+        for chunk, (i, j) in enumerate(tri.close_pairs()):
+            _stage("crossing triangles, chunk", chunk + 1)
             ti, tj = tris[i], tris[j]
             share = (ti[:, :, None] == tj[:, None, :]).any(axis=(1, 2))
             i, j = i[~share], j[~share]
@@ -337,6 +341,7 @@ class PenetrationCheck:
         hrad = float(np.sqrt(np.max(np.sum((H - hc[:, None]) ** 2, axis=2))))
         cell_tree = cKDTree(hc)
         surf = self.surface
+        _stage("boundary vertices inside the film")
         d_vert, hosts = self._inside_depth(X, X[surf], surf, surf, H, cell_tree, hrad, tri)
         deep = d_vert > 0.0
         if deep.any():
@@ -347,6 +352,7 @@ class PenetrationCheck:
         inside[surf[deep]] = True
         edges = edges[~(inside[edges[:, 0]] | inside[edges[:, 1]])]  # an end inside: measured there
         if edges.size:
+            _stage("depth along the crossing edges")
             t = (np.arange(1, _EDGE_SAMPLES + 1) / (_EDGE_SAMPLES + 1))[None, :, None]
             pts = (X[edges[:, 0]][:, None] * (1 - t) + X[edges[:, 1]][:, None] * t).reshape(-1, 3)
             a, b = np.repeat(edges[:, 0], _EDGE_SAMPLES), np.repeat(edges[:, 1], _EDGE_SAMPLES)
@@ -424,6 +430,7 @@ class PenetrationCheck:
         vn /= np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
         best = np.inf
         for start in range(0, surf.size, _GAP_CHUNK):  # the vertices one chunk at a time
+            _stage("gap search", start // _GAP_CHUNK + 1, -(-surf.size // _GAP_CHUNK))
             part = surf[start:start + _GAP_CHUNK]
             vi, tj = tri.pairs_with(X[part] + r * vn[part], r)
             if not vi.size:
@@ -444,6 +451,16 @@ class PenetrationCheck:
             if keep.any():
                 best = min(best, float(dist[keep].min()))
         return best if np.isfinite(best) else None
+
+
+def _stage(what, step=None, total=None):
+    """Log the check's progress (debug; the command line shows it on long checks)."""
+    if not log.isEnabledFor(logging.DEBUG):
+        return
+    log.debug("checking self-penetration: %s%s", what,
+              "" if step is None else f" {step}" + ("" if total is None else f"/{total}"),
+              extra={"progress": {"event": "stage", "stage": f"checking self-penetration: {what}", "step": step,
+                                  "total": total}})
 
 
 class _Triangles:

@@ -196,6 +196,41 @@ class Result:
             out["contact_info"] = self.contact.as_dict()
         return out
 
+    def to_meshio(self, frame=-1):
+        """The film of one frame as a ``meshio.Mesh`` (needs meshio).
+
+        Parameters
+        ----------
+        frame : int
+            Frame of the contraction ramp (``-1``: the final shape, ``0``: the flat print).
+
+        Returns
+        -------
+        meshio.Mesh
+            The hexahedra at the frame's points [mm]; cell data ``material``, ``R`` and ``layer``,
+            point data ``displacement`` [mm] from the flat print, and ``field_data`` naming the
+            material codes (``material_rigid``: ``[0]``, ...; :func:`gdfe.io.material_field_data`).
+        """
+        from gdfe.io import hex_meshio
+
+        nf = len(self.frames)
+        if not isinstance(frame, (int, np.integer)) or isinstance(frame, bool) or not -nf <= frame < nf:
+            raise GdfeError(f"frame: expected an integer in [{-nf}, {nf - 1}] (the result has {nf} frames), "
+                            f"got {frame!r}")
+        points = np.asarray(self.frames[frame], float)
+        return hex_meshio(points, self.design, {"displacement": points - self.design.mesh.points})
+
+    def to_pyvista(self, frame=-1):
+        """The film of one frame as a ``pyvista.UnstructuredGrid`` (needs pyvista and meshio): the
+        mesh of :meth:`to_meshio`, its cell, point and field data included."""
+        import pyvista
+
+        mesh = self.to_meshio(frame)
+        grid = pyvista.from_meshio(mesh)
+        for name, value in mesh.field_data.items():  # pyvista.from_meshio leaves field data out
+            grid.field_data[name] = value
+        return grid
+
 
 def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=None,
              history=6, seed=0, model=None, process=None, contact="auto", dhat=None, on_drift="warn"):
@@ -353,7 +388,8 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
                            reason="contact='on'" if term is not None else "")
     if contact == "auto" and crossed:
         if available:
-            log.info("the contact-free solve passes through itself (%s); solving again with contact", crossed)
+            log.info("the contact-free solve passes through itself (%s); solving again with contact", crossed,
+                     extra={"progress": {"event": "contact"}})
             timings["contact_free_solve"] = time.perf_counter() - t0
             term = watch.surface()
             cmethod = method if method.startswith("newton") else auto_method(design)
@@ -456,8 +492,14 @@ def _check_frames(design, frames):
     vertex) need not be held beside the solver's largest arrays (0.7 GiB at 10^6 cells).
     """
     t0 = time.perf_counter()
+    log.debug("checking self-penetration: %d cells, %d frames", design.n_cells, len(frames) - 1,
+              extra={"progress": {"event": "check", "frame": None, "frames": len(frames) - 1}})
     check = PenetrationCheck(design)
-    pens = [check(V) for V in frames[1:]]
+    pens = []
+    for k, V in enumerate(frames[1:]):
+        log.debug("checking self-penetration: frame %d/%d", k + 1, len(frames) - 1,
+                  extra={"progress": {"event": "check", "frame": k + 1, "frames": len(frames) - 1}})
+        pens.append(check(V))
     return pens, time.perf_counter() - t0
 
 
@@ -518,6 +560,8 @@ def _run_frames(solver, acts, method, term, *, init, start, seed, tol, max_iter,
     stats, drift = None, None
     for k, a in enumerate(acts[1:]):
         frame_its = 0
+        log.debug("frame %d/%d: activation %.3g%s", k + 1, len(acts) - 1, a, "" if term is None else ", with contact",
+                  extra={"progress": {"event": "frame", "frame": k + 1, "frames": len(acts) - 1}})
         if term is None:
             if k == 0:
                 V = _first_start(solver, design, init, start, seed, a)
@@ -548,6 +592,8 @@ def _run_frames(solver, acts, method, term, *, init, start, seed, tol, max_iter,
         frame_its += stats.iterations
         total += frame_its
         per_frame.append(frame_its)
+        log.debug("frame %d/%d: %d iterations, residual %.2e", k + 1, len(acts) - 1, frame_its, res,
+                  extra={"progress": {"event": "frame solved", "frame": k + 1, "frames": len(acts) - 1}})
         energies.extend(stats.energies)
         frames.append(V.copy())
         if drift is None and stats.drift is not None:

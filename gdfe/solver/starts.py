@@ -49,6 +49,8 @@ def multilevel_start(design, activation):
     near-equal states (``on_drift="stop"``): its shape is only the next level's start.
     """
     coarse, prolong = coarsen(design)
+    log.debug("multilevel: %d cells coarsened to %d", design.n_cells, coarse.n_cells,
+              extra={"progress": {"event": "coarsened", "cells": coarse.n_cells}})
     solver = Solver(coarse)
     if coarse.n_cells > MULTILEVEL_COARSEST:
         V = multilevel_start(coarse, activation)
@@ -57,5 +59,5 @@ def multilevel_start(design, activation):
     stats = solver.solve(V, activation, method=auto_method(coarse), tol=MULTILEVEL_TOL, max_iter=MULTILEVEL_ITER,
                          on_drift="stop")
     log.debug("multilevel: %d cells, %d iterations, residual %.2e", coarse.n_cells, stats.iterations,
-              stats.residual)
+              stats.residual, extra={"progress": {"event": "level", "cells": coarse.n_cells}})
     return prolong @ stats.points

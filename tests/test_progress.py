@@ -1,0 +1,176 @@
+"""Progress that works everywhere: a bar with a total on a terminal, plain lines elsewhere, nothing with -q.
+
+Standard error under pytest's ``capsys`` is not a terminal, so a command shows plain lines
+unless ``--progress`` asks for the bar. The interval between lines is the module's
+``INTERVAL``, set small here so that short runs print some.
+"""
+
+import json
+import logging
+import re
+import time
+from pathlib import Path
+
+import pytest
+
+import gdfe
+from gdfe.cli import main
+from gdfe.cli import _progress as P
+from gdfe.resources import DESIGN_CHECK_SIMULATIONS, DESIGN_EVALUATION_SIMULATIONS, estimate_design, estimate_run
+
+ROOT = Path(__file__).resolve().parents[1]
+HINGE = ["hinge", "-L", "1", "--d", "0.33", "--steps", "2", "--method", "newton"]
+LINE = re.compile(r"^gdfe: .*, \d+ (s|min \d+ s)( \(busy \d+ s since\))?$")
+
+
+def _lines(err):
+    return [ln for ln in err.splitlines() if ln.startswith("gdfe: ") and not ln.startswith("gdfe: estimated")]
+
+
+def test_off_a_terminal_a_long_run_prints_plain_lines_with_stage_iteration_residual_and_time(capsys, monkeypatch):
+    monkeypatch.setattr(P, "INTERVAL", 0.0)  # every progress record is "long enough" for a line
+    assert main(HINGE) == 0
+    lines = _lines(capsys.readouterr().err)
+    assert lines and all(LINE.match(ln) for ln in lines), lines
+    assert any(re.match(r"gdfe: solving frame 2/2, Newton \d+, residual \d\.\de-\d\d h, \d+ s$", ln) for ln in lines)
+    assert any(ln.startswith("gdfe: checking self-penetration frame 2/2, gap search") for ln in lines), lines
+    assert "\r" not in "".join(lines)  # no bar drawn off a terminal
+
+
+def test_lines_come_at_most_every_interval(monkeypatch, capsys):
+    now = [0.0]
+    monkeypatch.setattr(P, "_clock", lambda: now[0])
+    monkeypatch.setattr(P, "HEARTBEAT", False)  # the lines of the records alone, on the test's clock
+    monkeypatch.setattr(P, "INTERVAL", 10.0)
+    log = logging.getLogger("gdfe.solver.newton")
+    with P.SolveProgress(None, frames=1) as progress:
+        assert progress.bar is None
+        for it in range(1, 36):  # one Newton iteration a second for 35 s
+            now[0] = float(it)
+            log.debug("newton %d", it, extra={"progress": {"event": "newton", "iteration": it, "residual_h": 0.5 / it,
+                                                            "estimate_h": 0.1}})
+    lines = _lines(capsys.readouterr().err)
+    assert lines == ["gdfe: solving, Newton 10, residual 5.0e-02 h, 10 s",
+                     "gdfe: solving, Newton 20, residual 2.5e-02 h, 20 s",
+                     "gdfe: solving, Newton 30, residual 1.7e-02 h, 30 s"]
+
+
+def test_a_step_that_says_nothing_still_gets_a_line_every_interval(monkeypatch, capsys):
+    monkeypatch.setattr(P, "INTERVAL", 0.05)
+    log = logging.getLogger("gdfe.solver.newton")
+    with P.SolveProgress(None, frames=1):
+        log.debug("newton", extra={"progress": {"event": "newton", "iteration": 4, "residual_h": 1e-3,
+                                                 "estimate_h": 1e-3}})
+        time.sleep(1.3)  # a factorisation, say: no record for a while
+    lines = _lines(capsys.readouterr().err)
+    assert len(lines) >= 3 and all(LINE.match(ln) for ln in lines), lines
+    assert lines[-1].startswith("gdfe: solving, Newton 4, residual 1.0e-03 h, 1 s (busy 1 s since)"), lines
+
+
+def test_quiet_prints_neither_lines_nor_estimate(capsys, monkeypatch):
+    monkeypatch.setattr(P, "INTERVAL", 0.0)
+    monkeypatch.setattr(P, "ESTIMATE_SECONDS", 0.0)
+    assert main([*HINGE, "-q"]) == 0
+    assert capsys.readouterr().err == ""
+    assert main([*HINGE, "--progress", "-q"]) == 0
+    assert capsys.readouterr().err == ""
+
+
+def test_the_estimate_is_printed_before_a_run_that_exceeds_the_threshold(capsys, monkeypatch):
+    assert main(HINGE) == 0  # a hinge takes well under the threshold: no estimate
+    assert "estimated" not in capsys.readouterr().err
+    monkeypatch.setattr(P, "ESTIMATE_SECONDS", 0.0)
+    assert main(HINGE) == 0
+    err = capsys.readouterr().err
+    assert re.search(r"^gdfe: estimated [\d,]+ cells x 2 frames: about .* of memory .*; fitted to gdfe bench", err,
+                     re.M), err
+
+
+def test_the_bar_has_a_total_that_counts_the_solves():
+    pytest.importorskip("tqdm")
+    log = logging.getLogger("gdfe.solver.simulation")
+    with P.SolveProgress(True, frames=3) as progress:
+        assert progress.bar is not None and progress.bar.total == 3
+        for k in (1, 2, 3):
+            log.debug("frame", extra={"progress": {"event": "frame", "frame": k, "frames": 3}})
+            log.debug("solved", extra={"progress": {"event": "frame solved", "frame": k, "frames": 3}})
+        assert progress.bar.n == 3
+        assert progress.text(bar=True) == "frame 3/3"
+    # a multilevel start: its coarse levels first, counted as the start coarsens
+    with P.SolveProgress(True, frames=1, cells=100_000, multilevel=True) as progress:
+        assert progress.bar.total == 1 + 3
+        starts = logging.getLogger("gdfe.solver.starts")
+        for cells in (25_000, 6_250):  # two levels, not the three the count guessed
+            starts.debug("coarsened", extra={"progress": {"event": "coarsened", "cells": cells}})
+        starts.debug("level", extra={"progress": {"event": "level", "cells": 6_250}})
+        assert progress.bar.total == 1 + 2 and progress.text(bar=True) == "multilevel start, level 2/2"
+
+
+def test_a_command_with_progress_draws_a_bar_with_its_total(capsys):
+    pytest.importorskip("tqdm")
+    assert main([*HINGE, "--progress"]) == 0
+    err = capsys.readouterr().err
+    assert re.search(r"solving: +\d+%\|.*\| [012]/2 ", err), err  # count/total, and a time estimate beside it
+    assert "frame 2/2, residual" in err and not _lines(err)
+
+
+def test_without_tqdm_a_progress_run_prints_lines(capsys, monkeypatch):
+    monkeypatch.setattr(P, "_tqdm", lambda: None)
+    monkeypatch.setattr(P, "INTERVAL", 0.0)
+    assert main([*HINGE, "--progress"]) == 0
+    assert any(ln.startswith("gdfe: solving frame 1/2, Newton") for ln in _lines(capsys.readouterr().err))
+
+
+def test_study_prints_a_line_when_it_ends_and_quiet_silences_it(tmp_path, capsys):
+    assert main(["study", "fig02", "--resolution", "coarse", "--out", str(tmp_path / "a"), "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["study"] == "fig02"  # standard output holds the JSON alone
+    assert re.search(r"^gdfe: fig02 ok, \d+\.\d s$", err, re.M), err
+    assert main(["study", "fig02", "--resolution", "coarse", "--out", str(tmp_path / "b"), "-q"]) == 0
+    assert capsys.readouterr().err == ""
+    assert main(["study", "fig02", "--resolution", "coarse", "--out", str(tmp_path / "c"), "--progress"]) == 0
+    assert "gdfe: fig02 ok" in capsys.readouterr().err
+
+
+def test_report_prints_each_study_as_it_ends(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(P, "INTERVAL", 0.0)
+    assert main(["report", "--only", "fig02", "--resolution", "coarse", "--out", str(tmp_path / "r"), "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["studies"][0]["name"] == "fig02"
+    assert re.search(r"^gdfe: fig02 ok, \d+\.\d s \(1/1\)$", err, re.M), err
+    assert "gdfe: report, building the interactive view" in err  # the lines between the studies
+    assert main(["report", "--only", "fig02", "--resolution", "coarse", "--out", str(tmp_path / "q"), "-q"]) == 0
+    assert capsys.readouterr().err == ""
+
+
+def test_studies_report_their_sweeps_through_the_log(caplog):
+    from studies._common import progress
+
+    with caplog.at_level(logging.DEBUG, logger="studies"):
+        assert list(progress(["a", "b"], "specimens")) == ["a", "b"]
+    steps = [r.progress for r in caplog.records if hasattr(r, "progress")]
+    assert steps == [{"event": "steps", "stage": "specimens", "step": 1, "total": 2},
+                     {"event": "steps", "stage": "specimens", "step": 2, "total": 2}]
+
+
+def test_the_penetration_check_reports_its_chunks(caplog):
+    res = gdfe.simulate(gdfe.hinge(1.0, d=0.33))
+    with caplog.at_level(logging.DEBUG, logger="gdfe.solver.penetration"):
+        gdfe.solver.check_penetration(res.points, res.design)
+    stages = [r.progress["stage"] for r in caplog.records if hasattr(r, "progress")]
+    assert "checking self-penetration: crossing triangles, chunk" in stages
+    assert "checking self-penetration: gap search" in stages
+
+
+def test_the_design_estimate_counts_its_simulations_as_the_benchmark_measured_them():
+    timing = json.loads((ROOT / "docs/bench/inverse2d/inverse2d.json").read_text())["timing"]
+    per_simulation = timing["seconds_by_step"]["relaxed_check"] / 2  # two simulations, same run, same load
+    measured = timing["per_evaluation_s"] / per_simulation
+    assert DESIGN_EVALUATION_SIMULATIONS == pytest.approx(measured, rel=0.05), measured
+    cells = 100_000
+    one = estimate_run(cells).seconds
+    assert estimate_design(cells, 0).seconds == pytest.approx((DESIGN_EVALUATION_SIMULATIONS
+                                                               + DESIGN_CHECK_SIMULATIONS) * one)
+    assert estimate_design(cells, 40).seconds == pytest.approx((41 * DESIGN_EVALUATION_SIMULATIONS
+                                                                + DESIGN_CHECK_SIMULATIONS + 1) * one)
+    assert "simulations" in estimate_design(cells, 0).text()
