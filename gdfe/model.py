@@ -65,6 +65,7 @@ import numpy as np
 from gdfe import paper
 from gdfe._validation import (GdfeError, GdfeFileNotFoundError, GdfeTypeError, check_choice, check_keys,
                               check_number, describe, read_text)
+from gdfe.physical_ranges import RANGES, range_of
 
 __all__ = ["DeformationModel", "Parameter", "PRINCIPLES", "MECHANISMS", "paper_model", "load_model",
            "as_model", "MODEL_FORMAT"]
@@ -106,19 +107,10 @@ MECHANISMS = {
     "hinge_length": _Term(("lambda",), ("mm",), "the contraction reaches lambda/2 past every coat edge"),
 }
 
-#: Ranges [lo, hi] outside which a parameter is physically doubtful, and why. A model
-#: with such a parameter carries a warning (in the file and wherever it is used).
-PHYSICAL_RANGES = {
-    "K": (0.0, math.inf, "a contraction coefficient is positive"),
-    "p": (0.0, 5.0, "the exponent of h/d of a bilayer lies between 0 and about 3"),
-    "E_ratio": (0.01, 100.0, "printed acrylates and polystyrene near its glass transition differ by at most ~100x"),
-    "mismatch": (0.0, 0.6, "pre-strained polystyrene shrinks in-plane by at most 50-60 %"),
-    "delta": (-0.1, 0.1, "a DLP cure depth error is tens of micrometres, not the coat itself"),
-    "lambda": (-0.5, 1.0, "resin bleed or film under the coat edge reaches a few tenths of a mm, "
-                          "not the size of the hinges themselves"),
-    "beta": (0.0, 2.0, "volume conservation of an in-plane shrink c thickens the film by at most ~2c"),
-    "alpha_max": (0.5, 2 * math.pi, "a fold that stalls below 0.5 rad or beyond a full turn is not a cap"),
-}
+#: Ranges [lo, hi] outside which a parameter is physically doubtful, and why: the one table of
+#: :mod:`gdfe.physical_ranges` (the diagnosis reads it too). A model with such a parameter
+#: carries a warning (in the file and wherever it is used).
+PHYSICAL_RANGES = {k: (r.lo, r.hi, r.why) for k, r in RANGES.items()}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -266,7 +258,8 @@ class DeformationModel:
         """Sentences on parameters at a bound of their fit or outside :data:`PHYSICAL_RANGES`."""
         out = []
         for k, p in self.params.items():
-            lo, hi, why = PHYSICAL_RANGES.get(k, (-math.inf, math.inf, ""))
+            r = range_of(k)
+            lo, hi, why = (r.lo, r.hi, r.why) if r is not None else (-math.inf, math.inf, "")
             unit = f" {p.unit}" if p.unit else ""
             if p.at_bound:
                 out.append(f"{k} = {p.value:.4g}{unit} stopped at a bound of its fit: the data do not "
@@ -578,12 +571,17 @@ class DeformationModel:
 
         The diagnosis's hinge model (:class:`gdfe.diagnosis.Model`) becomes the same stages
         on any design: ``passive_stiffness`` is the Timoshenko principle, the other effects
-        are mechanisms of the same names.
+        are mechanisms of the same names. A measurement effect (``reading_offset``) is how the
+        folds were read, not how a part folds: it is left out, and the model says so.
         """
         from gdfe._version import __version__
 
-        effects = tuple(fit.model.effects)
+        measured = {"reading_offset": "offset"}
+        effects = tuple(e for e in fit.model.effects if e not in measured)
         values = dict(zip(fit.model.param_names, np.asarray(fit.params, float)))
+        notes = tuple(f"{e} ({measured[e]} = {values[measured[e]]:.4g} rad) was fitted too: a measurement issue, not "
+                      f"how the parts fold, so it is left out of this model" for e in fit.model.effects if e in measured)
+        values = {k: v for k, v in values.items() if k not in measured.values()}
         se = getattr(fit, "se", None)
         se = dict(zip(fit.model.param_names, np.asarray(se, float))) if se is not None else {}
         at_bound = set(getattr(fit, "at_bound", ()) or ())
@@ -616,7 +614,8 @@ class DeformationModel:
             info["held_out"] = {"loo": "leave one test out", "logo": "leave one group out"}.get(held_out, held_out)
         mech = tuple(e for e in effects if e != "passive_stiffness")
         return cls(principle=principle, params=params, mechanisms=mech, name=fit.model.name,
-                   source="gdfe diagnose", data=info, version=__version__, columns=columns, labels=labels)
+                   source="gdfe diagnose", data=info, version=__version__, columns=columns, labels=labels,
+                   warnings=notes)
 
 
 def _finite_or_none(x):

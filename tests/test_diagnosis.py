@@ -39,9 +39,10 @@ def test_effect_at_neutral_strength_is_baseline(t1, effect, neutral):
 
 def test_catalogue_names_and_pairs():
     names = [m.name for m in catalogue()]
-    for e in ("cure_depth", "hinge_length", "saturation", "passive_stiffness", "film_thickening"):
+    for e in ("cure_depth", "hinge_length", "saturation", "passive_stiffness", "film_thickening", "reading_offset"):
         assert e in names and e in EFFECTS
-    assert len(names) == 1 + 5 + 10
+    assert EFFECTS["reading_offset"].kind == "measurement" and EFFECTS["cure_depth"].kind == "physics"
+    assert len(names) == 1 + 6 + 15  # five physical effects and a reading offset, each pair
     assert model("cure_depth+hinge_length").param_names == ("K", "delta", "lambda")
     assert model("passive_stiffness").param_names == ("E_ratio", "mismatch")
 

@@ -121,12 +121,19 @@ def test_the_diagnosis_model_carried_to_a_design_gives_its_closed_form():
     from gdfe.diagnosis import diagnose
 
     diag = diagnose(gdfe.TABLE1, check=None)
-    m = DeformationModel.from_effect_fit(diag.best, data=gdfe.TABLE1, n_tests=18)
+    pair = next(f for f in diag.fits if f.name == "cure_depth+hinge_length")
+    m = DeformationModel.from_effect_fit(pair, data=gdfe.TABLE1, n_tests=18)
     t = gdfe.load_folding_tests(gdfe.TABLE1)
-    np.testing.assert_allclose(m.hinge_angle(t.L, t.d, t.h), diag.best.predicted, rtol=1e-12)
+    np.testing.assert_allclose(m.hinge_angle(t.L, t.d, t.h), pair.predicted, rtol=1e-12)
     assert m.data["n_tests"] == 18 and len(m.data["sha256"]) == 64
-    # Table 1's best pair has lambda ~ 2.9 mm: outside the physical range, said out loud
+    # Table 1's cure_depth+hinge_length has lambda ~ 2.9 mm: outside the physical range, said out loud
     assert any("lambda" in w and "physical range" in w for w in m.warnings)
+    # a reading offset is how the folds were read, not how the part folds: left out, and said
+    off = next(f for f in diag.fits if f.name == "saturation+reading_offset")
+    m = DeformationModel.from_effect_fit(off, data=gdfe.TABLE1, n_tests=18)
+    offset = off.param_dict()["offset"]
+    np.testing.assert_allclose(m.hinge_angle(t.L, t.d, t.h), off.predicted - offset, rtol=1e-12)
+    assert m.mechanisms == ("saturation",) and any("measurement issue" in w for w in m.warnings)
 
 
 def test_model_needs_the_passive_thickness():
@@ -279,7 +286,9 @@ def test_a_couple_the_model_cannot_fold_is_an_error_naming_it():
 # -- the diagnosis's model, process mechanisms ------------------------------------------------------
 def test_diagnose_writes_the_chosen_model_and_another_on_request(tmp_path, capsys):
     best, sat = tmp_path / "best.toml", tmp_path / "sat.toml"
-    assert main(["diagnose", str(gdfe.TABLE1), "--check", "none", "--model-out", str(best)]) == 0
+    # Table 1's chosen model is saturation+reading_offset (implausible offset); the pair is asked for
+    assert main(["diagnose", str(gdfe.TABLE1), "--check", "none", "--model-out", str(best),
+                 "--effect", "cure_depth+hinge_length"]) == 0
     assert main(["diagnose", str(gdfe.TABLE1), "--check", "none", "--model-out", str(sat),
                  "--effect", "saturation"]) == 0
     out = capsys.readouterr().out

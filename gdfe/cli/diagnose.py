@@ -6,6 +6,8 @@ from pathlib import Path
 
 from gdfe._validation import GdfeError, check_positive
 from gdfe.cli._common import emit, file_path, json_arg, new_toml_path, noting, output_folder
+from gdfe.diagnosis.baselines import BASELINES
+from gdfe.diagnosis.columns import ROLES, parse_role
 from gdfe.diagnosis.forward import CELLS
 from gdfe.diagnosis.shape import ALIGNMENTS
 
@@ -17,17 +19,28 @@ def register(sub):
         "diagnose", help="where folding tests and the calibrated GDFE hinge part ways, and why",
         description="Fit the calibrated GDFE hinge (Eq. 1-3) to folding tests, locate its residuals, "
                     "rank a catalogue of physical effects by held-out error, and give a verdict against "
-                    "the noise: no_gap, explained, partly_explained or not_explained. Numeric extra columns "
-                    "(oven temperature, time) are process columns of partial_activation; text columns with "
-                    "repeated labels are groups (leave-one-group-out, a batch effect); a sigma_rad column is "
-                    "the noise of each test. Exit status 3 when the chosen model's fit did not converge.")
+                    "the noise: no_gap, explained, partly_explained, not_explained or structure_remains. A numeric "
+                    "extra column the folds follow is a factor (factor[COL]) unless --role declares it a "
+                    "process variable (then partial_activation[COL]); text columns with repeated labels are "
+                    "groups (leave-one-group-out; factor[COL], or batch[COL] for a declared group role); "
+                    "a sigma_rad column is the noise of each test. Fold angles are magnitudes (>= 0); "
+                    "--signed takes |alpha|. Exit status 3 when the chosen model's fit did not converge.")
     p.add_argument("data", type=file_path, help="CSV with columns L_mm, d_mm, h_mm, alpha_rad (more allowed)")
     p.add_argument("--sigma", type=float, default=None, metavar="S",
                    help="noise of the measured angles [rad] (default: a sigma_rad column, else replicate "
                         "rows, else unknown)")
     p.add_argument("--process", default=None, metavar="COL[,COL]",
-                   help="numeric columns partial_activation may use (default: every numeric column that "
-                        "varies; '' for none)")
+                   help="numeric columns a monotone dependence may be fitted on (factor[COL], or "
+                        "partial_activation[COL] for a declared process role; default: every numeric column "
+                        "that varies; '' for none)")
+    p.add_argument("--role", action="append", default=[], metavar="COL=ROLE",
+                   help="declare what a column is (repeatable), e.g. T_C=oven_temperature; roles: "
+                        + ", ".join(ROLES))
+    p.add_argument("--baseline", choices=BASELINES, default="eq1",
+                   help="the form of the law the gap is measured against (default eq1, Eq. 1 as printed); "
+                        "every form is fitted and the report splits the gap into form and effects")
+    p.add_argument("--signed", action="store_true",
+                   help="the angles are signed (a direction): take |alpha| (default: a negative angle is an error)")
     json_arg(p, "the diagnosis", dest="json_out")
     p.add_argument("--report", type=_folder, metavar="DIR",
                    help="write plots and summary.md into this folder (complete, or marked incomplete)")
@@ -83,8 +96,10 @@ def _diagnose(args, folder):
     if args.effect is not None and args.model_out is None:
         raise GdfeError("--effect: expected --model-out too (it names the model to save)")
     process = None if args.process is None else [c.strip() for c in args.process.split(",") if c.strip()]
+    roles = dict(parse_role(r) for r in args.role)
     diag = diagnose(args.data, group=args.group, sigma=args.sigma, process=process, pairs=not args.no_pairs,
-                    check=None if args.check == "none" else args.check)
+                    check=None if args.check == "none" else args.check, roles=roles, baseline=args.baseline,
+                    signed=args.signed)
     obj = diag.as_dict()
     text = diag.text()
     if args.model_out is not None:
@@ -97,7 +112,7 @@ def _diagnose(args, folder):
             files = write_report(diag, args.report)
         obj["report"] = files
         text += f"\nreport: {files['summary']}"
-    emit(obj, args.json_out, text)
+    emit(obj, args.json_out, text, command="diagnose")
     return 0 if diag.best.success else 3
 
 
@@ -109,11 +124,15 @@ def _save_model(diag, args):
     if args.effect is None:
         fit = diag.best
     else:
-        names = [f.name for f in fits]
-        matches = [f for f in fits if f.name == args.effect or f.model.name.split("[")[0] == args.effect]
+        names = [diag.display(f) for f in fits]
+        matches = [f for f in fits if args.effect in (f.name, diag.display(f))
+                   or f.model.name.split("[")[0] == args.effect]
         if not matches:
             raise GdfeError(f"--effect: expected one of the fitted models {', '.join(names)}, got {args.effect!r}")
         fit = matches[0]
+    if not fit.model.effects and diag.baseline_name != "eq1":
+        raise GdfeError(f"--model-out: the {diag.baseline_name} baseline is not a deformation model of the GDFE hinge; "
+                        f"save a model of the catalogue (--effect NAME), or calibrate the reading with gdfe calibrate")
     model = gdfe.DeformationModel.from_effect_fit(fit, data=args.data, n_tests=len(diag.tests),
                                                   held_out=diag.held_out if fit.held_out_rmse(diag.held_out) is not None
                                                   else "loo")
@@ -141,7 +160,7 @@ def _diagnose_shape(args, folder):
         with folder:
             obj["report"] = write_shape_report(res, args.report)
         text += f"\nreport: {obj['report']['summary']}"
-    emit(obj, args.json_out, text)
+    emit(obj, args.json_out, text, command="diagnose-shape")
     if not res.matches:
         return 4
     return 0 if res.converged else 3

@@ -3,16 +3,21 @@
 :func:`diagnose` takes folding tests (a table like the paper's Table 1, with any further
 columns) and
 
-1. reads its **columns**: ``sigma_rad`` (the noise of each test), numeric process columns
-   (oven temperature, time, exposure: candidates of ``partial_activation``) and text columns
-   with repeated labels (batch, operator, printer: groups, for leave-one-group-out, a
-   ``batch`` effect and the residual structure by group);
+1. reads its **columns**: ``sigma_rad`` (the noise of each test), numeric columns (a monotone
+   dependence on one is ``partial_activation`` when its role is declared a process, else a
+   factor, ``factor[COLUMN]``; :mod:`gdfe.diagnosis.columns`) and text columns with repeated
+   labels (groups, for leave-one-group-out, a per-group contraction, ``batch`` for a declared
+   group role, else ``factor[COLUMN]``, and the residual structure by group); a column
+   confounded with the design is said (:mod:`gdfe.diagnosis.confounding`); fold angles are
+   magnitudes, and a negative one beyond the noise is an error unless they are declared signed;
 2. finds the **noise** (:mod:`gdfe.diagnosis.verdict`): given, a ``sigma_rad`` column,
    replicate rows, or unknown;
-3. fits the **baseline**, the paper's deformation principle refitted to the data: the GDFE
-   hinge with the contraction ratio of Eq. 3, whose converged fold is Eq. 2's
+3. fits the **baseline**, by default the paper's deformation principle refitted to the data:
+   the GDFE hinge with the contraction ratio of Eq. 3, whose converged fold is Eq. 2's
    ``(1 - R) L / h``, i.e. Eq. 1, ``alpha = K sqrt(h / d**3) L``, with ``K`` by least
-   squares (the closed form is checked against GDFE solves of the same tests);
+   squares (the closed form is checked against GDFE solves of the same tests); or another
+   form of the law (:mod:`gdfe.diagnosis.baselines`); every form is fitted, and the report
+   says how much of the gap lies in the form and how much beyond it;
 4. fits every **effect** of the catalogue (:mod:`gdfe.diagnosis.effects`) and every pair, and
    measures each on tests the fit did not see: leave-one-out (k-fold for many tests), and
    leave-one-group-out when the tests carry a group column, which then ranks them; a model
@@ -34,7 +39,10 @@ columns) and
    structure is left (:mod:`gdfe.diagnosis.where`);
 9. gives the **verdict** (``no_gap``, ``explained``, ``partly_explained``,
    ``not_explained``; :func:`gdfe.diagnosis.verdict.decide`), naming all the
-   indistinguishable models.
+   indistinguishable models; ``structure_remains`` in place of ``no_gap`` where the
+   residuals show a strong trend the family-wise test cannot confirm
+   (:func:`gdfe.diagnosis.where.strong_trends`); a factor is said to be no physical cause,
+   and a confounded column to be confounded.
 
 The cost grows linearly with the tests (k-fold cross-validation above
 :data:`gdfe.diagnosis.fit.LOO_EXACT` tests, multi-start iterations on a subset above
@@ -52,11 +60,16 @@ import numpy as np
 
 from gdfe._validation import GdfeError, GdfeTypeError, check_choice, is_finite_number
 from gdfe.calibration import FoldingTests, load_folding_tests
+from gdfe.diagnosis.artefacts import screen as screen_artefacts
+from gdfe.diagnosis.artefacts import with_relative_noise
+from gdfe.diagnosis.baselines import BASELINES, DESCRIPTIONS, baseline_model, form_shares
+from gdfe.diagnosis.columns import ROLES, ColumnRoles, check_roles, rename
+from gdfe.diagnosis.confounding import confounded
 from gdfe.diagnosis.effects import EFFECTS, Model, catalogue
 from gdfe.diagnosis.fit import STEP_SE, EffectFit, compare, evaluate, mark_equal, select
-from gdfe.diagnosis.separate import indistinguishable, separating_test
+from gdfe.diagnosis.separate import indistinguishable, prefer_plausible, separating_test
 from gdfe.diagnosis.verdict import LEVEL, MEANINGFUL, Noise, Verdict, decide, gap, lack_of_fit, noise_of
-from gdfe.diagnosis.where import group_analysis, residual_analysis, structure
+from gdfe.diagnosis.where import TREND_LEVEL, TREND_RHO, group_analysis, residual_analysis, strong_trends, structure
 
 __all__ = ["Diagnosis", "Columns", "diagnose", "within_noise_step", "numeric_columns", "read_columns",
            "SIGMA_COLUMN", "CHECK_TESTS"]
@@ -87,6 +100,10 @@ class Columns:
         The ``sigma_rad`` column.
     ignored : dict of str -> str
         Columns left out, and why.
+    roles : ColumnRoles
+        The declared roles (:mod:`gdfe.diagnosis.columns`): a numeric column is a process
+        column of ``partial_activation`` only when declared a process role, else its effect is
+        a factor; a group column's ``batch`` is a group factor unless declared a group role.
     """
 
     process: dict
@@ -94,11 +111,15 @@ class Columns:
     logo: str | None
     sigma: np.ndarray | None
     ignored: dict
+    roles: ColumnRoles = dataclasses.field(default_factory=ColumnRoles)
 
     def as_dict(self):
         return {"process": list(self.process), "groups": {k: sorted(set(v.tolist())) for k, v in self.groups.items()},
                 "leave_one_group_out": self.logo, "sigma_column": self.sigma is not None,
-                "ignored": self.ignored}
+                "ignored": self.ignored,
+                "roles": {k: {"role": self.roles.roles.get(k), "kind": self.roles.kind(k) or "undeclared",
+                              "effect": self.roles.words(k, numeric=k in self.process)}
+                          for k in [*self.process, *self.groups]}}
 
 
 def _as_float(values):
@@ -119,8 +140,30 @@ def numeric_columns(tests):
     return out
 
 
-def read_columns(tests, group=None, process=None):
+def _not_finite_rows(values):
+    """Rows (CSV numbering) of a column whose values all read as numbers or are empty, where a
+    value is empty or not finite; None when the column holds text."""
+    bad = []
+    for i, v in enumerate(values):
+        v = str(v).strip()
+        if not v:
+            bad.append(i)
+            continue
+        try:
+            x = float(v)
+        except ValueError:
+            return None
+        if not math.isfinite(x):
+            bad.append(i)
+    return bad
+
+
+def read_columns(tests, group=None, process=None, roles=None):
     """Sort the extra columns of ``tests`` into noise, process and group columns.
+
+    A column of numbers with an empty, ``nan`` or infinite value in some row is an error
+    naming those rows (it is neither a numeric column nor labels), unless it is the group
+    column or declared a group role: then its values are labels.
 
     Parameters
     ----------
@@ -131,6 +174,8 @@ def read_columns(tests, group=None, process=None):
     process : sequence of str, optional
         The numeric columns ``partial_activation`` may use (default: every numeric column
         that varies; ``()`` for none).
+    roles : dict of str -> str, optional
+        Declared roles of columns (:data:`gdfe.diagnosis.columns.ROLES`).
 
     Returns
     -------
@@ -138,6 +183,7 @@ def read_columns(tests, group=None, process=None):
     """
     n = len(tests)
     extra = tests.extra
+    known = ColumnRoles(check_roles(roles, list(extra)))
     if group is not None:
         if not isinstance(group, str):
             raise GdfeTypeError(f"group: expected a column name, got {group!r}")
@@ -157,8 +203,19 @@ def read_columns(tests, group=None, process=None):
     for k, v in extra.items():
         if k == SIGMA_COLUMN:
             continue
+        labelled = k == group or known.is_group(k)
         x = _as_float(v)
-        if x is not None and k != group:
+        bad = None if x is not None or labelled else _not_finite_rows(v)
+        if bad and len(bad) < len(v):
+            rows = ", ".join(str(i + 2) for i in bad[:8]) + (", ..." if len(bad) > 8 else "")
+            raise GdfeError(f"column {k}: expected a finite number in every row of a numeric column, got "
+                            f"{str(v[bad[0]])!r} in row{'s' if len(bad) > 1 else ''} {rows}; fill or drop "
+                            f"{'those rows' if len(bad) > 1 else 'that row'}, or declare {k} a group column "
+                            f"(--group {k}, or a group role, --role {k}=batch) to read its values as labels")
+        if x is None and known.is_process(k):
+            raise GdfeError(f"roles: column {k!r} is declared {known.roles[k]}, a process role, so it must be "
+                            f"numeric; got {str(v[0])!r} in row 2")
+        if x is not None and not labelled:
             if np.ptp(x) > 0:
                 numeric[k] = x
             else:
@@ -166,10 +223,10 @@ def read_columns(tests, group=None, process=None):
             continue
         labels = np.asarray(v).astype(str)
         m = np.unique(labels).size
-        if k == group and m < 2:
-            log.info("group column %r has a single value: no leave-one-group-out", group)
+        if labelled and m < 2:
+            log.info("group column %r has a single value: no leave-one-group-out", k)
             ignored[k] = "a single group"
-        elif k == group or 2 <= m <= n // 2:
+        elif labelled or 2 <= m <= n // 2:
             groups[k] = labels
         else:
             ignored[k] = ("a single group" if m < 2 else
@@ -189,7 +246,7 @@ def read_columns(tests, group=None, process=None):
             if k not in proc:
                 ignored[k] = "numeric, not among the process columns asked for"
     logo = group if group in groups else ("group" if "group" in groups else next(iter(groups), None))
-    return Columns(process=proc, groups=groups, logo=logo, sigma=sigma, ignored=ignored)
+    return Columns(process=proc, groups=groups, logo=logo, sigma=sigma, ignored=ignored, roles=known)
 
 
 @dataclasses.dataclass
@@ -245,6 +302,23 @@ class Diagnosis:
     check : dict or None
         Closed form against GDFE solves (:func:`gdfe.diagnosis.forward.gdfe_check`) for
         the baseline and the best model.
+    baseline_name : str
+        The baseline the gap is measured against (:data:`gdfe.diagnosis.baselines.BASELINES`).
+    baseline_form : dict or None
+        How much of the gap to Eq. 1 lies in the form of the law and how much beyond it
+        (:func:`gdfe.diagnosis.baselines.form_shares`).
+    confounded : list of dict
+        Extra columns confounded with the design variables
+        (:func:`gdfe.diagnosis.confounding.confounded`).
+    trends : list of dict
+        Strong residual trends of the baseline that the family-wise structure test does not
+        confirm (:func:`gdfe.diagnosis.where.strong_trends`).
+    signed : bool
+        Whether the angles were read as signed and taken as magnitudes.
+    renames : dict of str -> str
+        Fitted name -> reported name of effects on columns that are factors
+        (``partial_activation[C]`` -> ``factor[C]``, ``batch[C]`` -> ``factor[C]``);
+        the fits keep their fitted names, the text and the JSON report the others.
     """
 
     tests: FoldingTests
@@ -271,6 +345,36 @@ class Diagnosis:
     check: dict | None = None
     named: list = dataclasses.field(default_factory=list)
     separation: dict | None = None
+    artefacts: object = None  # gdfe.diagnosis.artefacts.Artefacts
+    baseline_name: str = "eq1"
+    baseline_form: dict | None = None
+    confounded: list = dataclasses.field(default_factory=list)
+    trends: list = dataclasses.field(default_factory=list)
+    signed: bool = False
+    renames: dict = dataclasses.field(default_factory=dict)
+
+    def display(self, fit):
+        """The reported name of a fit (or fitted name): a factor's effect as ``factor[C]``."""
+        return rename(fit if isinstance(fit, str) else fit.name, self.renames)
+
+    def effect_kinds(self, fit):
+        """The kind of each effect of ``fit`` (:meth:`gdfe.diagnosis.columns.ColumnRoles.effect_kinds`)."""
+        return self.columns.roles.effect_kinds(fit.model)
+
+    def credit(self, fit):
+        """What each column effect of ``fit`` says, and whether its column is confounded."""
+        out = []
+        conf = {c["column"]: c for c in self.confounded}
+        for col, numeric in ((fit.model.process, True), (fit.model.group, False)):
+            if not col:
+                continue
+            words = self.columns.roles.words(col, numeric=numeric)
+            if col in conf:
+                names = ", ".join(w.split("_")[0] for w in conf[col]["with"])
+                words += (f"; confounded with {names}: its effect cannot be told from a dependence on {names} "
+                          f"the catalogue lacks")
+            out.append({"column": col, "text": words, "confounded": col in conf})
+        return out
 
     def _kind(self, fit, kind=None):
         kind = kind or self.held_out
@@ -292,19 +396,23 @@ class Diagnosis:
         logo = self.held_out == "logo"
 
         def entry(f):
-            e = {"name": f.name, "effects": list(f.model.effects), "params": f.param_dict(),
+            e = {"name": f.name, "effects": list(f.model.effects), "effect_kinds": self.effect_kinds(f),
+                 "params": f.param_dict(),
                  "se": {k: _num(v) for k, v in f.se_dict().items()},
                  "ci95": {k: [_num(a), _num(b)] for k, (a, b) in f.ci_dict().items()},
                  "parameters": f.parameters(),
                  "n_params": f.model.n_params, "rmse": f.rmse, "loo_rmse": f.loo_rmse, "cv": f.cv,
                  "shrink": self.shrink(f, "loo"), "aic": f.aicc, "at_bound": f.at_bound,
                  "identifiable": f.identifiable, "unidentified": f.unidentified,
-                 "condition": _num(f.condition), "equals": f.equals, "converged": f.success}
+                 "condition": _num(f.condition), "equals": f.equals, "converged": f.success,
+                 "plausible": getattr(f, "plausible", True), "implausible": getattr(f, "implausible", [])}
             if f.model.process:
                 e["process_column"] = f.model.process
             if f.model.group:
                 e["group_column"] = f.model.group
                 e["group_labels"] = list(f.model.labels)
+            if f.model.process or f.model.group:
+                e["credit"] = self.credit(f)
             if logo:
                 e.update(logo_rmse=f.logo_rmse,
                          shrink_logo=self.shrink(f, "logo") if f.logo_rmse is not None else None)
@@ -316,9 +424,8 @@ class Diagnosis:
         # the chosen model first, the others by held-out error
         effects.sort(key=lambda e: (e["name"] != self.best.name, e["rank"]))
         b = self.baseline
-        base = {"model": BASELINE_MODEL,
-                "description": "GDFE hinge with the contraction ratio of Eq. 3 refitted to the data; "
-                               "its converged fold is Eq. 1, alpha = K sqrt(h/d^3) L",
+        base = {"model": BASELINE_MODEL if self.baseline_name == "eq1" else b.name, "form": self.baseline_name,
+                "description": DESCRIPTIONS[self.baseline_name],
                 "params": b.param_dict(), "se": {k: _num(v) for k, v in b.se_dict().items()},
                 "rmse": b.rmse, "loo_rmse": b.loo_rmse, "cv": b.cv, "aic": b.aicc,
                 "r2": _r2(t.alpha, b.predicted)}
@@ -341,13 +448,17 @@ class Diagnosis:
             "verdict": self.verdict.verdict,
             "verdict_text": self.verdict.text,
             "noise": self.noise.as_dict(),
+            "angles": ("signed: taken as magnitudes |alpha|" if self.signed else
+                       "magnitudes, positive towards the uncoated face"),
+            "confounded": self.confounded,
+            "baseline_form": self.baseline_form,
             "n_tests": len(t),
             "held_out": "leave-one-group-out" if logo else b.cv,
             "columns": self.columns.as_dict(),
             "baseline": base,
             "lack_of_fit": self.lack_of_fit,
             "gap_removed": self.verdict.removed,
-            "structure": {"baseline": self.structure, "best": self.structure_best},
+            "structure": {"baseline": self.structure, "best": self.structure_best, "strong_trends": self.trends},
             "where": self.where,
             "regime": self.regime,
             "residuals": residuals,
@@ -376,9 +487,16 @@ class Diagnosis:
             "excluded": self.excluded,
             "warnings": self.warnings,
             "catalogue": {e.name: e.as_dict() for e in EFFECTS.values()},
+            "artefacts": None if self.artefacts is None else self.artefacts.as_dict(),
         }
+        out["columns"]["available_roles"] = {r: {"kind": k, "what": w} for r, (k, w) in ROLES.items()}
         if self.check is not None:
             out["gdfe_check"] = self.check
+        out = _renamed(out, self.renames)
+        # what each reported name was fitted as (the names of the fits, e.g. for --effect)
+        names = {rename(f.name, self.renames): f.name for f in [b] + list(self.fits)}
+        for e in out["effects"] + [out["best_detail"]]:
+            e["fitted_as"] = names.get(e["name"], e["name"])
         return out
 
     def text(self) -> str:
@@ -390,12 +508,24 @@ class Diagnosis:
                  f"{len(self.tests)} folding tests; held-out error: {ho} RMSE"
                  + (f" by {self.columns.logo}" if self.held_out == "logo" else "")
                  + ("" if b.cv == "leave-one-out" else f"; LOO column: {b.cv} cross-validation"),
-                 f"baseline (Eq. 1-3 refitted): K = {b.params[0]:.4g} +- {b.se[0]:.2g}, RMSE {b.rmse:.3f} rad, "
+                 (f"baseline (Eq. 1-3 refitted): " if self.baseline_name == "eq1" else
+                  f"baseline ({self.baseline_name}: {DESCRIPTIONS[self.baseline_name]}): ")
+                 + ", ".join(f"{k} = {v:.4g} +- {e:.2g}" for (k, v), e in zip(b.param_dict().items(), b.se))
+                 + f", RMSE {b.rmse:.3f} rad, "
                  f"{ho} {self.held_out_rmse(b):.3f} rad, R^2 {_r2(self.tests.alpha, b.predicted):.3f}"]
+        if self.signed:
+            lines.append("angles: signed in the data, taken as magnitudes |alpha| (--signed)")
+        if self.baseline_form is not None:
+            lines.append("baseline form: " + self.baseline_form["text"])
+        roles = self.columns.roles
         if self.columns.process or self.columns.groups:
             lines.append("columns: " + "; ".join(
-                ([f"process {', '.join(self.columns.process)}"] if self.columns.process else [])
-                + ([f"groups {', '.join(self.columns.groups)}"] if self.columns.groups else [])))
+                [f"{k} ({roles.roles[k]})" if k in roles.roles else f"{k} (undeclared: a factor)"
+                 for k in self.columns.process]
+                + [f"{k} ({roles.roles[k]})" if k in roles.roles else f"{k} (undeclared: a group factor)"
+                   for k in self.columns.groups]))
+        for c in self.confounded:
+            lines.append(f"confounded: {c['what it means']} ({c['measure']} {c['value']:.2f} >= {c['threshold']:g})")
         if self.check is not None and self.check.get("baseline"):
             c = self.check["baseline"]
             lines.append(f"  closed form vs GDFE solves ({c['cells']} cells/hinge, {c['n_tests']} tests): "
@@ -407,7 +537,7 @@ class Diagnosis:
             flag = ("  <- best" if f is self.best else "  (not identifiable)" if not f.identifiable
                     else f"  (= {f.equals})" if f.equals else "")
             logo = f.logo_rmse
-            lines.append(f"{f.name:44s} {f.model.n_params:2d} {f.rmse:7.3f} {f.loo_rmse:7.3f}"
+            lines.append(f"{self.display(f):44s} {f.model.n_params:2d} {f.rmse:7.3f} {f.loo_rmse:7.3f}"
                          + ((f" {logo:7.3f}" if logo is not None else f" {'-':>7s}")
                             if self.held_out == "logo" else "")
                          + f" {100 * self.shrink(f):6.1f}% {f.aicc:8.2f}" + flag)
@@ -422,16 +552,33 @@ class Diagnosis:
             lines.append(f"  (held-out errors alone would name {self.selected.name}, which the lack-of-fit test "
                          f"rejects; {self.best.name} is within the noise)")
         if len(self.named) > 1:
-            lines.append("indistinguishable on these data: " + ", ".join(f.name for f in self.named))
+            lines.append("the data cannot tell apart: " + ", ".join(
+                f.name + ("" if getattr(f, "plausible", True) else " (implausible parameters)") for f in self.named))
             if self.separation is not None:
                 lines.append("  " + self.separation["text"])
+        for c in self.credit(self.best):
+            lines.append(f"  {c['text']}")
         lines.append("after the best model: " + self.regime_best)
+        lines += [f"measurement: {w}" for w in ([] if self.artefacts is None else self.artefacts.sentences())]
         lines += [f"warning: {w}" for w in self.warnings]
-        return "\n".join(lines)
+        return rename("\n".join(lines), self.renames)
 
 
 def _num(v):
     return float(v) if v is not None and math.isfinite(v) else None
+
+
+def _renamed(obj, renames):
+    """``obj`` (JSON-like) with every fitted name of ``renames`` in its strings and keys replaced."""
+    if not renames:
+        return obj
+    if isinstance(obj, str):
+        return rename(obj, renames)
+    if isinstance(obj, dict):
+        return {_renamed(k, renames): _renamed(v, renames) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_renamed(v, renames) for v in obj]
+    return obj
 
 
 def _r2(y, p):
@@ -448,7 +595,8 @@ def _check_subset(pred, n=CHECK_TESTS):
     return np.sort(order[np.unique(np.linspace(0, order.size - 1, n).round().astype(int))])
 
 
-def diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=None, models=None):
+def diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=None, models=None, roles=None,
+             baseline="eq1", signed=False, screen=True, relative_sigma=None):
     """Diagnose the gap between folding tests and the calibrated GDFE hinge.
 
     Parameters
@@ -473,6 +621,26 @@ def diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=N
         compare with the closed forms of the baseline and the best model.
     models : list of Model, optional
         Models to compare instead of the catalogue (the baseline is always fitted).
+    screen : bool
+        Look for measurement artefacts (failed specimens, gross outliers, noise growing with
+        the angle; :func:`gdfe.diagnosis.artefacts.screen`), repeating the diagnosis without
+        flagged rows and, when the noise grows with the angle, weighted by ``1 / alpha^2``.
+    relative_sigma : (n,) float array, optional
+        Each test's noise relative to the RMS noise (mean square 1): weights
+        ``1 / relative_sigma^2`` (set by the screen).
+    roles : dict of str -> str, optional
+        What extra columns are (:data:`gdfe.diagnosis.columns.ROLES`), e.g.
+        ``{"T_C": "oven_temperature"}``. A monotone dependence on a numeric column is
+        ``partial_activation[COLUMN]`` only for a process role, else ``factor[COLUMN]``; a
+        group column's own contraction is ``batch[COLUMN]`` only for a group role, else
+        ``factor[COLUMN]`` too (:mod:`gdfe.diagnosis.columns`).
+    baseline : {"eq1", "eq1-d1", "power", "timoshenko"}
+        The form of the law the gap is measured against
+        (:data:`gdfe.diagnosis.baselines.BASELINES`); every form is fitted, and the report
+        says how much of the gap to Eq. 1 lies in the form and how much beyond it.
+    signed : bool
+        The angles are signed (their sign a direction): they are taken as magnitudes
+        ``|alpha|``, and the report says so. Without it a negative angle is an error.
 
     Returns
     -------
@@ -482,27 +650,35 @@ def diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=N
     ------
     GdfeError
         Fewer than 5 tests, a group or process column that is not there, a bad ``sigma`` or a
-        bad ``sigma_rad`` value (naming its row).
+        bad ``sigma_rad`` value (naming its row), a numeric column with a missing or
+        non-finite value (naming its rows), a role that is not in the registry, negative
+        angles without ``signed`` (naming their rows).
     """
     if not isinstance(tests, FoldingTests):
         tests = load_folding_tests(tests)
     n = len(tests)
     if n < 5:
         raise GdfeError(f"tests: need at least 5 folding tests to fit and hold out, got {n}")
+    check_choice("baseline", baseline, BASELINES)
+    if signed and np.any(tests.alpha < 0):
+        tests = dataclasses.replace(tests, alpha=np.abs(tests.alpha))
     if sigma is not None and not (is_finite_number(sigma) and sigma > 0):
         raise GdfeError(f"sigma: expected a positive noise in rad, got {sigma!r}")
     if check is not None:
         from gdfe.diagnosis.forward import CELLS
 
         check_choice("check", check, CELLS)
-    cols = read_columns(tests, group=group, process=process)
+    cols = read_columns(tests, group=group, process=process, roles=roles)
     L, d, h, alpha = tests.L, tests.d, tests.h, tests.alpha
     keys = [L, d, h, *cols.process.values()]
     keys += [np.unique(v, return_inverse=True)[1].ravel().astype(float) for v in cols.groups.values()]
     noise = noise_of(alpha, sigma=sigma, sigma_column=cols.sigma, keys=np.column_stack(keys))
+    small_negative = _check_signs(alpha, noise)
     weights = None
     if noise.source == "sigma_rad column" and np.ptp(noise.sigma) > 0:
         weights = 1.0 / noise.sigma**2
+    if relative_sigma is not None:  # the noise grows with the angle (gdfe.diagnosis.artefacts)
+        noise, weights = with_relative_noise(noise, relative_sigma)
     groups = cols.groups.get(cols.logo)
     kind = "logo" if groups is not None else "loo"
 
@@ -511,13 +687,13 @@ def diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=N
         g = m.group_index(cols.groups[m.group]) if m.group else None
         return evaluate(m, L, d, h, alpha, groups, x=x, group=g, weights=weights)
 
-    base = fit(Model(()))
+    base = fit(baseline_model(baseline))
     if models is None:
         models = catalogue(pairs, process=list(cols.process))
     fits = []
     for m in models:
-        if not m.effects:
-            continue
+        if not m.effects or (baseline == "timoshenko" and m.effects == ("passive_stiffness",)):
+            continue  # the baseline itself
         if n - 1 <= m.n_params + 1:
             log.info("%s: %d parameters need more than %d tests; skipped", m.name, m.n_params, n)
             continue
@@ -553,6 +729,7 @@ def diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=N
         best = within_noise_step(best, fits, alpha, within, kind_of, weights)
     named = indistinguishable(best, [base] + fits, alpha, kind_of, within if noise.known else None,
                               STEP_SE[0], weights, sigma=noise.sigma if noise.known else None)
+    best = prefer_plausible(best, named)
 
     def x_of(m):
         return cols.process[m.process] if m.process else None
@@ -569,7 +746,16 @@ def diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=N
                      lof_best=lof_best, structure_base=struct_base, structure_best=struct_best,
                      gap_base=gap(alpha, base.loo_predicted, noise), gap_best=gap(alpha, best.loo_predicted, noise),
                      noise=noise, named=[f.name for f in named],
-                     separation=None if separation is None else separation["text"])
+                     separation=None if separation is None else separation["text"],
+                     implausible=getattr(best, "implausible", None), kinds=getattr(best.model, "kinds", None),
+                     effects=best.model.effects,
+                     named_implausible={f.name: [p["name"] for p in getattr(f, "implausible", [])] for f in named})
+    renames = cols.roles.renames([f.model for f in [base] + fits])
+    conf = confounded({"L_mm": L, "d_mm": d, "h_mm": h}, numeric=cols.process, groups=cols.groups)
+    trends = strong_trends(where)
+    verdict = _amend(verdict, base=base, best=best, named=named, cols=cols, conf=conf, trends=trends,
+                     structure_any=bool(struct_base or struct_best), n=n, renames=renames)
+    forms = _baseline_forms(baseline, base, fits, fit, alpha, noise, best, renames)
     excluded = [{"name": f.name, "reason": (f"parameters not identifiable from these data "
                                             f"({', '.join(f.unidentified)})" if not f.identifiable else
                                             f"predictions equal those of {f.equals}")}
@@ -579,8 +765,15 @@ def diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=N
                      regime_best=regime_b, inputs=inputs, columns=cols, noise=noise, verdict=verdict,
                      selected=selected, lack_of_fit={"baseline": lof_base, "best": lof_best},
                      structure=struct_base, structure_best=struct_best, excluded=excluded, named=named,
-                     separation=separation)
+                     separation=separation, baseline_name=baseline, baseline_form=forms, confounded=conf,
+                     trends=trends, signed=bool(signed), renames=renames)
     diag.warnings = _warnings(diag)
+    if small_negative:
+        diag.warnings.append(f"rows {', '.join(map(str, small_negative))}: negative angles within "
+                             f"{NEGATIVE_SIGMAS:g} standard deviations of the noise, kept as measured (the noise of "
+                             f"small folds; angles are magnitudes, positive towards the uncoated face)")
+    if signed:
+        diag.warnings.append("angles read as signed (--signed): the diagnosis uses their magnitudes |alpha|")
     if check:
         from gdfe.diagnosis.forward import gdfe_check
 
@@ -593,13 +786,118 @@ def diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=N
             c["n_tests"] = int(idx.size)
             return c
 
-        diag.check = {"baseline": sub(base)}
-        if best is not base:
+        # a baseline form other than Eq. 1 has no GDFE hinge of its own to check
+        diag.check = {"baseline": sub(base)} if isinstance(base.model, Model) else {}
+        if best is not base and isinstance(best.model, Model):
             diag.check["best"] = sub(best)
         if not all(c["converged"] for c in diag.check.values()):
             diag.warnings.append("a GDFE solve of the check did not converge: its difference to the closed "
                                  "form is not a discretisation error")
+    if screen:  # measurement artefacts: failed specimens, outliers, noise growing with the angle
+        diag = screen_artefacts(diag, lambda t, relative_sigma=None, main=False: diagnose(
+            t, group=group, sigma=sigma, process=process, pairs=pairs, check=check if main else None, models=models,
+            roles=roles, baseline=baseline, signed=signed, screen=False, relative_sigma=relative_sigma))
+    diag.verdict = dataclasses.replace(diag.verdict, text=rename(diag.verdict.text, diag.renames))
     return diag
+
+
+#: Standard deviations of the noise within which a negative angle is read as the noise of a small fold.
+NEGATIVE_SIGMAS = 2.0
+
+
+def _check_signs(alpha, noise):
+    """Fold angles are magnitudes, positive towards the uncoated face. A negative angle is an
+    error naming its rows unless the noise is known and it lies within
+    :data:`NEGATIVE_SIGMAS` of it (a small fold measured with noise: kept as measured, and
+    the rows returned for a warning)."""
+    negative = np.nonzero(alpha < 0)[0]
+    if not negative.size:
+        return []
+    tol = NEGATIVE_SIGMAS * (noise.sigma[negative] if noise.known else 0.0)
+    beyond = negative[alpha[negative] < -tol]
+    if beyond.size:
+        rows = ", ".join(str(i + 2) for i in beyond[:10]) + (", ..." if beyond.size > 10 else "")
+        raise GdfeError(f"alpha_rad: expected fold angles as magnitudes (>= 0, positive towards the uncoated face), "
+                        f"got {beyond.size} negative {'beyond twice the noise ' if noise.known else ''}in "
+                        f"row{'s' if beyond.size > 1 else ''} {rows}; if the sign is a direction, say so "
+                        f"(signed=True, --signed) to take |alpha|")
+    return [int(i) + 2 for i in negative]
+
+
+def _baseline_forms(chosen, base, fits, fit, alpha, noise, best, renames):
+    """:func:`gdfe.diagnosis.baselines.form_shares` of the data: every baseline form fitted
+    (reusing the chosen baseline's and the catalogue's fits where they are the same model)."""
+    from gdfe.diagnosis.baselines import FormModel
+
+    out = {}
+    for name in BASELINES:
+        if name == chosen:
+            out[name] = base
+        elif name == "eq1":
+            out[name] = next((f for f in fits if isinstance(f.model, Model) and not f.model.effects), None) \
+                or fit(Model(()))
+        elif name == "timoshenko":
+            out[name] = next((f for f in fits if isinstance(f.model, Model)
+                              and f.model.effects == ("passive_stiffness",)), None) or fit(FormModel(name))
+        else:
+            out[name] = fit(FormModel(name))
+    gaps = {k: gap(alpha, f.loo_predicted, noise) for k, f in out.items()}
+    rmse = {k: f.loo_rmse for k, f in out.items()}
+    rmse["best_model"] = best.loo_rmse
+    usable = [k for k, f in out.items() if f.usable and np.all(np.isfinite(f.loo_predicted))] or ["eq1"]
+    best_form = min(usable, key=lambda k: gaps[k])
+    return form_shares(gaps, rmse, best_form, (rename(best.name, renames), gap(alpha, best.loo_predicted, noise)),
+                       chosen)
+
+
+def _amend(verdict, *, base, best, named, cols, conf, trends, structure_any, n, renames):
+    """The verdict with what the columns and the residuals add to it.
+
+    * ``no_gap`` is never given when the residuals show structure: with family-wise structure
+      (which :func:`gdfe.diagnosis.verdict.decide` already rules out), or with a strong trend
+      that the family-wise test cannot confirm on these tests
+      (:func:`gdfe.diagnosis.where.strong_trends`), the verdict is ``structure_remains``;
+    * a chosen or named model with a factor (an effect on a column whose role was not
+      declared) says that it is a factor, not a physical cause;
+    * a chosen or named model on a confounded column says with what.
+    Model names in the text are the reported ones (``factor[C]``).
+    """
+    if verdict.verdict == "no_gap" and (structure_any or trends):
+        t = trends[0] if trends else None
+        why = (f"{t['text']}, a strong trend (|rho| >= {TREND_RHO:g}, p < {TREND_LEVEL:g} on its own test) "
+               f"that the family-wise test over every column cannot confirm with {n} tests" if t else
+               "residual structure")
+        verdict = dataclasses.replace(
+            verdict, verdict="structure_remains",
+            text=f"structure remains: no model of the catalogue earns its parameters and the baseline fits "
+                          f"as well as can be told, but its residuals show {why}; neither a gap nor its absence is "
+                          f"established: tests over a wider range of {t['input'] if t else 'the inputs'} would tell")
+    notes = []
+    if verdict.verdict in ("explained", "partly_explained"):
+        seen = set()
+        conf_by = {c["column"]: c for c in conf}
+        for f in [best] + [g for g in named if g is not best]:
+            for col, numeric in ((f.model.process, True), (f.model.group, False)):
+                if not col or col in seen:
+                    continue
+                seen.add(col)
+                kind = cols.roles.kind(col)
+                if not ((numeric and kind == "process") or (not numeric and kind == "group")):
+                    notes.append(f"{rename(f.name, renames)} is {cols.roles.words(col, numeric)}: a factor, "
+                                 f"not a physical cause")
+                if col in conf_by:
+                    c = conf_by[col]
+                    names = ", ".join(w.split("_")[0] for w in c["with"])
+                    notes.append(f"{col} is confounded with {names} ({c['measure']} {c['value']:.2f}): the effect "
+                                 f"of {rename(f.name, renames)} cannot be told from a dependence on {names} that the "
+                                 f"catalogue lacks")
+    else:
+        seen = set()
+    notes += [c["what it means"] for c in conf if c["column"] not in seen]
+    text = rename(verdict.text, renames)
+    if notes:
+        text = text.rstrip(".") + ". " + ". ".join(notes) + "."
+    return dataclasses.replace(verdict, text=text, named=[rename(m, renames) for m in verdict.named])
 
 
 def _batch_step(best, fits, cols, fit, alpha, weights, n):

@@ -14,7 +14,14 @@ effect changes one of them:
    ``batch``);
 4. **arc** -- Eq. 2, ``alpha = c L / h_eff`` with the film thickness after shrinking:
    ``h_eff = h`` (baseline) or ``h (1 + beta c)`` (``film_thickening``);
-5. **activation** -- ``alpha -> alpha_max tanh(alpha / alpha_max)`` (``saturation``).
+5. **activation** -- ``alpha -> alpha_max tanh(alpha / alpha_max)`` (``saturation``);
+6. **measurement** -- how the fold was read: ``alpha -> alpha + offset`` (``reading_offset``,
+   a protractor or image reading off by a constant).
+
+Every effect has a **kind** (:data:`KINDS`): ``"physics"`` (stages 1-5: the part folded
+otherwise than modelled), ``"measurement"`` (stage 6: the part folded as modelled, and was
+read otherwise), or ``"factor"`` (an effect on a data column whose role was not declared).
+A diagnosis reports a measurement effect as a measurement issue, not as physics.
 
 The converged GDFE hinge reproduces stage 4's arc, ``(1 - R) L / h``, up to its
 discretisation (see :func:`gdfe.diagnosis.gdfe_check`), so the stages are the GDFE
@@ -22,7 +29,9 @@ prediction in closed form. Pairs of effects compose stage by stage.
 
 Every parameter is listed in :data:`EFFECTS` with its unit and meaning (:class:`Param`), and
 each effect with its exact formula (:attr:`Effect.formula`), so that a fitted model can be
-carried to any design. Lengths in mm, angles in radians.
+carried to any design. Every parameter has a physical range (:mod:`gdfe.physical_ranges`, the
+table the model files read too); :meth:`Model.implausible` lists those a fit left outside
+theirs. Lengths in mm, angles in radians.
 """
 
 from __future__ import annotations
@@ -33,10 +42,15 @@ import itertools
 import numpy as np
 
 from gdfe._validation import GdfeError, GdfeTypeError
+from gdfe.physical_ranges import check, check_contraction, range_of
 from gdfe.timoshenko import bilayer_curvature
 
 __all__ = ["Param", "Effect", "Model", "EFFECTS", "BASELINE_PARAMS", "catalogue", "model",
-           "activation_fraction", "REFERENCE_GROUP"]
+           "activation_fraction", "REFERENCE_GROUP", "KINDS"]
+
+#: Kinds of effect: the part folded otherwise than modelled, it was read otherwise, or the fold
+#: follows a data column whose role was not declared.
+KINDS = ("physics", "measurement", "factor")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -57,8 +71,8 @@ class Effect:
     name : str
         Catalogue name, e.g. ``"cure_depth"``.
     stage : str
-        ``"geometry"``, ``"principle"``, ``"process"``, ``"arc"`` or ``"activation"`` (see the
-        module docstring).
+        ``"geometry"``, ``"principle"``, ``"process"``, ``"arc"``, ``"activation"`` or
+        ``"measurement"`` (see the module docstring).
     parameters : tuple of Param
         Its parameters (beyond the baseline's K, which ``passive_stiffness`` replaces). For
         ``batch`` one template, ``scale[g]``, stands for one parameter per group label ``g``.
@@ -69,6 +83,8 @@ class Effect:
     column : {None, "numeric", "text"}
         The kind of data column the effect needs: a numeric process column
         (``partial_activation``) or a text group column (``batch``).
+    kind : str
+        One of :data:`KINDS`.
     """
 
     name: str
@@ -77,6 +93,7 @@ class Effect:
     meaning: str
     formula: str
     column: str | None = None
+    kind: str = "physics"
 
     @property
     def params(self) -> tuple:
@@ -90,7 +107,7 @@ class Effect:
     def as_dict(self) -> dict:
         return {"stage": self.stage, "params": list(self.params), "units": list(self.units),
                 "parameters": [dataclasses.asdict(p) for p in self.parameters],
-                "meaning": self.meaning, "formula": self.formula, "column": self.column}
+                "meaning": self.meaning, "formula": self.formula, "column": self.column, "kind": self.kind}
 
 
 #: The baseline's parameter: Eq. 3's coefficient.
@@ -149,6 +166,12 @@ EFFECTS = {
                "pre-strain or of the process",
                f"c -> s_g c for a test of group g; s_g = scale[g], and s = 1 for {REFERENCE_GROUP}",
                column="text"),
+        Effect("reading_offset", "measurement", (Param("offset", "rad", "what the reading adds to every fold "
+                                                                        "(negative: reads less)"),),
+               "a measurement issue, not physics: every fold was read off by the same angle (a protractor "
+               "or image reference line set off the panel, a zero not subtracted); the parts folded as "
+               "the rest of the model says",
+               "alpha -> alpha + offset (measured, not folded)", kind="measurement"),
     )
 }
 
@@ -367,7 +390,72 @@ class Model:
         alpha = c * L / h if "beta" not in p else c * L / (h * (1.0 + p["beta"] * c))
         if "alpha_max" in p:
             alpha = p["alpha_max"] * np.tanh(alpha / p["alpha_max"])
+        if "offset" in p:
+            alpha = alpha + p["offset"]
         return alpha
+
+    @property
+    def kinds(self) -> tuple:
+        """The kind (:data:`KINDS`) of each effect, in the order of :attr:`effects`."""
+        return tuple(EFFECTS[e].kind for e in self.effects)
+
+    def implausible(self, params, L, d, h, x=None, group=None, se=None):
+        """The fitted parameters outside their physical range (:mod:`gdfe.physical_ranges`),
+        and the contraction of the film's free face on the tests when it is outside
+        ``[0, MAX_CONTRACTION]``.
+
+        Parameters
+        ----------
+        params : (k,) float array
+            In the order of :attr:`param_names`.
+        L, d, h : (n,) float arrays [mm]
+            The tests (the reasoning says how a length compares with theirs).
+        x, group : (n,) arrays, optional
+            As in :meth:`predict`.
+        se : (k,) float array, optional
+            Standard errors of the parameters: a parameter is then implausible only when it
+            lies outside its range by more than one standard error (the one-standard-error
+            rule by which the diagnosis names an effect at all; a true value on the edge of
+            its range is not flagged half the time); an infinite one counts as unknown, and
+            the value alone decides.
+
+        Returns
+        -------
+        list of dict
+            ``name``, ``value``, ``range`` ([lo, hi], None for an infinite bound), ``unit``,
+            ``why`` (and ``se`` when given); empty when every parameter is plausible.
+        """
+        L, d = np.asarray(L, float), np.asarray(d, float)
+        out = []
+        se = np.full(self.n_params, np.nan) if se is None else np.asarray(se, float)
+        for name, v, s in zip(self.param_names, np.real(np.asarray(params, float)), se):
+            context = ""
+            if name == "lambda" and v > 0:
+                k = int(np.sum(L < v))
+                context = f"lambda = {v:.3g} mm is wider than {k} of the {L.size} hinges tested" if k else ""
+            elif name == "lambda" and v < 0:
+                k = int(np.sum(L < -v))
+                context = f"it would take away more than {k} of the {L.size} hinges tested" if k else ""
+            elif name == "delta":
+                k = int(np.sum(d < abs(v)))
+                context = (f"|delta| = {abs(v):.3g} mm is more than {k} of the {d.size} coats tested are thick"
+                           if k else "")
+            found = check(name, v, context)
+            if found is not None and np.isfinite(s):
+                r = range_of(name)
+                if not (v + s < r.lo or v - s > r.hi):
+                    continue  # within one standard error of the range
+                found["se"] = float(s)
+            if found is not None:
+                out.append(found)
+        with np.errstate(all="ignore"):
+            c = self.contraction(np.asarray(params, float), d, np.asarray(h, float), x, group)
+        found = check_contraction(c)
+        if found is not None:
+            found["why"] += (f"; the model needs c = {found['value']:.3g} on a test, i.e. a thinner coat than "
+                             "printed or more shrink than the film has")
+            out.append(found)
+        return out
 
     # -- what the fit needs --------------------------------------------------------------------
     def bounds(self, L, d, alpha, x=None):
@@ -381,6 +469,7 @@ class Model:
             "E_ratio": (1e-3, 1e3),
             "mismatch": (1e-9, 0.99),
             "beta": (0.0, 20.0),  # the film can only thicken
+            "offset": (-1.0, 1.0),  # wider than a plausible reading error, so that a fit can say so
         }
         if "partial_activation" in self.effects:
             lo_x, hi_x = float(np.min(x)), float(np.max(x))
@@ -407,6 +496,7 @@ class Model:
             "beta": [0.0, 1.0, 5.0],
             "K": [0.1],
             "mismatch": [0.05],
+            "offset": [0.0],
         }
         if "partial_activation" in self.effects:
             q = np.quantile(x, [0.25, 0.5, 0.75])

@@ -155,7 +155,8 @@ def _summary_md(diag, files):
         lines.append(f"- warning: {w}")
     lines += ["", "After the best model: " + diag.regime_best, "",
               "## Files", ""] + [f"- {k}: `{Path(v).name}`" for k, v in files.items() if k != "summary"]
-    return "\n".join(lines) + "\n"
+    # effects on undeclared columns under their reported names (factor[C]; gdfe.diagnosis.columns)
+    return diag.display("\n".join(lines)) + "\n"
 
 
 def write_shape_report(result, out):

@@ -44,7 +44,7 @@ import numpy as np
 from gdfe._validation import GdfeError, describe
 from gdfe.diagnosis.effects import Model
 
-__all__ = ["EffectFit", "fit_params", "evaluate", "select", "compare", "mark_equal", "aicc",
+__all__ = ["EffectFit", "fit_params", "evaluate", "select", "compare", "mark_equal", "aicc", "robust_fit",
            "STEP_SE", "RANK_TOL", "EQUAL_TOL", "LOO_EXACT", "FOLDS", "START_ROWS"]
 
 log = logging.getLogger(__name__)
@@ -108,6 +108,9 @@ class EffectFit:
         ``"leave-one-out"`` or ``"10-fold"`` (what :attr:`loo_predicted` is).
     logo_scheme : str or None
         ``"leave-one-group-out"`` or ``"10 folds of groups"``.
+    implausible : list of dict
+        Parameters outside their physical range (:meth:`Model.implausible`: ``name``,
+        ``value``, ``range``, ``unit``, ``why``); empty for a plausible fit.
     """
 
     model: Model
@@ -130,6 +133,12 @@ class EffectFit:
     equals: str | None = None
     cv: str = "leave-one-out"
     logo_scheme: str | None = None
+    implausible: list = dataclasses.field(default_factory=list)
+
+    @property
+    def plausible(self) -> bool:
+        """Whether every parameter is inside its physical range (:mod:`gdfe.physical_ranges`)."""
+        return not self.implausible
 
     @property
     def name(self) -> str:
@@ -504,8 +513,65 @@ def evaluate(model, L, d, h, alpha, groups=None, starts=None, *, x=None, group=N
         logo_rmse=None if logo is None else float(np.sqrt(np.nanmean((data.alpha - logo) ** 2))),
         aicc=aicc(rss, n, model.n_params), at_bound=at_bound, success=ok,
         se=se, ci95=ci, identifiable=ident, unidentified=unident, condition=cond, cv=cv,
-        logo_scheme=scheme,
+        logo_scheme=scheme, implausible=_implausible(model, params, data, se),
     )
+
+
+def _implausible(model, params, data, se):
+    """:meth:`Model.implausible` of a fit (with its standard errors when the model's check takes them)."""
+    import inspect
+
+    check = getattr(model, "implausible", None)
+    if check is None:
+        return []
+    if "se" in inspect.signature(check).parameters:
+        return check(params, data.L, data.d, data.h, data.x, data.g, se=se)
+    return check(params, data.L, data.d, data.h, data.x, data.g)
+
+
+def robust_fit(fit, L, d, h, alpha, scale, *, x=None, group=None, loss="soft_l1"):
+    """Refit ``fit``'s model with a robust loss, so that gross outliers do not pull it.
+
+    ``scipy.optimize.least_squares`` with ``loss`` on the residuals in units of ``scale``
+    (``soft_l1``: quadratic within one unit, linear beyond), from the least-squares
+    parameters and inside the model's bounds.
+
+    Parameters
+    ----------
+    fit : EffectFit
+    L, d, h, alpha : (n,) float arrays [mm, mm, mm, rad]
+    scale : (n,) float array [rad]
+        The noise of each test (or a robust estimate of it).
+    x, group : (n,) arrays, optional
+        As in :func:`evaluate`.
+    loss : str
+
+    Returns
+    -------
+    params : (k,) float array
+    residuals : (n,) float array [rad]
+        Measured minus robustly fitted angles.
+    """
+    from scipy.optimize import least_squares
+
+    data = _Data.of(L, d, h, alpha, x, group)
+    model = fit.model
+    lo, hi = model.bounds(data.L, data.d, data.alpha, data.x)
+    scale = np.broadcast_to(np.asarray(scale, float), data.alpha.shape)
+
+    def fun(p):
+        with np.errstate(all="ignore"):
+            r = (data.predict(model, p) - data.alpha) / scale
+        return np.where(np.isfinite(r), r, 1e3)
+
+    def jac(p):
+        with np.errstate(all="ignore"):
+            return _jacobian(model, p, data) / scale[:, None]
+
+    x0 = np.clip(np.asarray(fit.params, float), lo, hi)
+    res = least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", loss=loss, f_scale=1.0,
+                        x_scale="jac", max_nfev=200)
+    return res.x, data.alpha - data.predict(model, res.x)
 
 
 def mark_equal(fits, alpha, tol=EQUAL_TOL):

@@ -22,6 +22,12 @@ With a known noise and the chosen model within it, a model must also be within t
 itself (a model the lack-of-fit test rejects is told apart by the data). The set is listed
 with the fewest effects first, then the fewest parameters, then the smallest held-out error.
 
+**Every kind.** The set is drawn from the whole catalogue, measurement artefacts (a reading
+offset) and models with implausible parameters included: a single cause is named only when
+the data rule the others out. When the chosen model fits only with implausible parameters and
+a model of the set is plausible, the plausible one with the fewest effects is chosen instead
+(:func:`prefer_plausible`): the data cannot tell them apart, the physics can.
+
 **Separating test**: each model of the set, with its fitted parameters, predicts tests like
 the data's with one input (``L``, ``d`` or ``h``) moved over a range (from half its smallest
 to 1.5 times its largest value in the data, the data's value when it is the same in every
@@ -41,7 +47,7 @@ import numpy as np
 from gdfe.diagnosis.fit import compare
 from gdfe.diagnosis.verdict import LEVEL
 
-__all__ = ["indistinguishable", "separating_test", "SEPARATION_VALUES", "SEPARATION_RANGE"]
+__all__ = ["indistinguishable", "separating_test", "prefer_plausible", "SEPARATION_VALUES", "SEPARATION_RANGE"]
 
 #: Values of the moved input tried by :func:`separating_test`.
 SEPARATION_VALUES = 11
@@ -106,6 +112,14 @@ def indistinguishable(chosen, fits, alpha, kind_of, within_of=None, step=1.0, we
         return (f.model.level, f.model.n_params, f.held_out_rmse("loo"), f.name)
 
     return sorted(out, key=key)
+
+
+def prefer_plausible(chosen, named):
+    """``chosen``, or the first plausible model of ``named`` when ``chosen`` fits only with
+    implausible parameters (:attr:`gdfe.diagnosis.fit.EffectFit.plausible`)."""
+    if getattr(chosen, "plausible", True) or not chosen.model.effects:
+        return chosen
+    return next((f for f in named if f.model.effects and getattr(f, "plausible", True)), chosen)
 
 
 def separating_test(fits, L, d, h, x_of, group_of, sigma=None):

@@ -41,7 +41,18 @@ against every input, the predicted angle and every group column):
 
 When the data cannot tell the chosen model from others
 (:func:`gdfe.diagnosis.separate.indistinguishable`), ``explained`` and ``partly_explained``
-name them all, fewest effects first, and the test that would separate them.
+name them all ("the data cannot tell apart: ..."), fewest effects first, and the test that
+would separate them.
+
+**Plausibility.** ``explained`` needs a plausible model: one whose every parameter lies in
+its physical range (:mod:`gdfe.physical_ranges`). A chosen model that fits only with
+implausible parameters describes the tests but is not credited as their cause: an
+``explained`` becomes ``partly_explained``, and the verdict's text opens with "fits only
+with implausible parameters: ...", each with its range and the reason, and what that means
+for carrying the model to other parts.
+
+**Measurement.** A chosen model with an effect of kind ``"measurement"`` (a reading offset)
+is said to be a measurement issue, not physics.
 
 With the noise unknown, "within the noise" cannot be tested: the verdict then rests on the
 held-out choice and the residual structure alone (``no_gap``: no effect earns its parameters
@@ -66,7 +77,7 @@ LEVEL = 0.01
 #: Part of the baseline's gap a model must remove for the removal to count.
 MEANINGFUL = 0.5
 #: The verdicts, in order.
-VERDICTS = ("no_gap", "explained", "partly_explained", "not_explained")
+VERDICTS = ("no_gap", "explained", "partly_explained", "not_explained", "structure_remains")
 
 
 @dataclasses.dataclass
@@ -256,7 +267,8 @@ def _lof_words(lof, noise):
 
 
 def decide(*, best_name, best_is_baseline, lof_base, lof_best, structure_base, structure_best, gap_base,
-           gap_best, noise, named=None, separation=None):
+           gap_best, noise, named=None, separation=None, implausible=None, kinds=None, effects=None,
+           named_implausible=None):
     """The verdict from the lack-of-fit tests, the structure left and the gap removed.
 
     When the data cannot tell the chosen model from others (``named`` holds more than one
@@ -279,6 +291,14 @@ def decide(*, best_name, best_is_baseline, lof_base, lof_best, structure_base, s
         :attr:`Verdict.named`.
     separation : str, optional
         The sentence of :func:`gdfe.diagnosis.separate.separating_test`.
+    implausible : list of dict, optional
+        The chosen model's parameters outside their physical range
+        (:attr:`gdfe.diagnosis.fit.EffectFit.implausible`).
+    kinds, effects : sequence of str, optional
+        The chosen model's effects and the kind of each (``"physics"``, ``"measurement"``,
+        ``"factor"``).
+    named_implausible : dict of str -> list of str, optional
+        For each model of ``named``, its parameters outside their physical range.
 
     Returns
     -------
@@ -290,16 +310,37 @@ def decide(*, best_name, best_is_baseline, lof_base, lof_best, structure_base, s
     v.named = list(named) if named else [best_name]
     if v.ambiguous and v.verdict in ("explained", "partly_explained"):
         others = [m for m in v.named if m != best_name]
-        v.text = v.text.rstrip(".") + (f". The data cannot tell {best_name} from {', '.join(others)}"
+        v.text = v.text.rstrip(".") + (f". The data cannot tell apart: {', '.join(v.named)}"
                    + (" (each within the noise; their held-out errors within one standard error of each other, "
                       "or their fitted angles closer than the noise can tell)" if noise.known and lof_best["within"]
                       else " (their held-out errors within one standard error of each other"
                       + (", or their fitted angles closer than the noise can tell)" if noise.known else ")"))
-                   + f": indistinguishable, fewest effects first: {', '.join(v.named)}"
+                   + f" ({best_name} chosen; the others: {', '.join(others)}; fewest effects first)"
                    + (f"; {separation}" if separation else ""))
+        bad = {m: ps for m, ps in (named_implausible or {}).items() if ps and m in v.named}
+        if bad:
+            v.text = v.text.rstrip(".") + ". Of these, fit only with implausible parameters: " + "; ".join(
+                f"{m} ({', '.join(ps)})" for m, ps in bad.items())
         if not v.text.endswith("."):
             v.text += "."
+    measured = [e for e, k in zip(effects or (), kinds or ()) if k == "measurement"]
+    if measured and v.verdict in ("explained", "partly_explained"):
+        v.text += (f" {', '.join(measured)} is a measurement issue, not physics: the parts may have folded as "
+                   "modelled and been read otherwise; check the reading before changing the model.")
+    if implausible and not best_is_baseline and v.verdict in ("explained", "partly_explained"):
+        if v.verdict == "explained":
+            v.verdict = "partly_explained"
+            v.text = v.text.replace("explained by", "described by", 1)
+        words = "; ".join(f"{p['name']} = {p['value']:.3g}{(' ' + p['unit']) if p['unit'] else ''} outside "
+                          f"[{_bound(p['range'][0], '-inf')}, {_bound(p['range'][1], 'inf')}] ({p['why']})" for p in implausible)
+        v.text = (f"fits only with implausible parameters: {words}. So {best_name} describes these tests but is not "
+                  "credited as their cause: its parameters stand for something else, and carried to other parts "
+                  "(other L, d, h) it extrapolates that something. " + v.text)
     return v
+
+
+def _bound(v, infinite):
+    return infinite if v is None else f"{v:g}"
 
 
 def _decide(*, best_name, best_is_baseline, lof_base, lof_best, structure_base, structure_best, gap_base,

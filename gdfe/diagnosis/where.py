@@ -23,10 +23,14 @@ import warnings
 
 import numpy as np
 
-__all__ = ["residual_analysis", "group_analysis", "describe_input", "structure", "STRUCTURE_LEVEL"]
+__all__ = ["residual_analysis", "group_analysis", "describe_input", "structure", "strong_trends",
+           "STRUCTURE_LEVEL", "TREND_LEVEL", "TREND_RHO"]
 
 #: Family-wise level of :func:`structure`.
 STRUCTURE_LEVEL = 0.01
+#: Level of a single test, and the |Spearman rho| at or above which :func:`strong_trends` reports a trend.
+TREND_LEVEL = 0.05
+TREND_RHO = 0.8
 
 # input name -> (what it is, its low regime, its high regime)
 _WORDS = {
@@ -212,6 +216,35 @@ def structure(entries, level=STRUCTURE_LEVEL):
                 text = f"by {e['input']}: {e['text']}"
             out.append({"input": e["input"], "kind": e["kind"], "p": float(e["p"]), "threshold": thr,
                         "text": text})
+    out.sort(key=lambda e: e["p"])
+    return out
+
+
+def strong_trends(entries, level=TREND_LEVEL, rho=TREND_RHO):
+    """Strong residual trends that the family-wise test of :func:`structure` does not confirm.
+
+    On a few tests no trend can pass :func:`structure` (with 5 tests Spearman's smallest
+    p-value is about 0.017, above any Bonferroni threshold of a handful of tests), yet a
+    trend with ``|rho| >= rho`` at ``p < level`` on its own test is what a reader of the
+    residuals sees. The diagnosis does not call such data free of a gap.
+
+    Parameters
+    ----------
+    entries : list of dict
+        Entries of :func:`residual_analysis` (numeric ones are read).
+    level, rho : float
+
+    Returns
+    -------
+    list of dict
+        ``input``, ``kind``, ``spearman_rho``, ``p``, ``text``, strongest first.
+    """
+    out = []
+    for e in entries:
+        if e.get("kind") == "numeric" and abs(e["spearman_rho"]) >= rho \
+                and e["spearman_p"] < level:
+            out.append({"input": e["input"], "kind": "numeric", "spearman_rho": float(e["spearman_rho"]),
+                        "p": float(e["spearman_p"]), "text": f"against {e['input']}: {e['text']}"})
     out.sort(key=lambda e: e["p"])
     return out
 
