@@ -613,7 +613,8 @@ class DeformationModel:
             info["held_out_rmse_rad"] = float(rmse)
             info["held_out"] = {"loo": "leave one test out", "logo": "leave one group out"}.get(held_out, held_out)
         mech = tuple(e for e in effects if e != "passive_stiffness")
-        return cls(principle=principle, params=params, mechanisms=mech, name=fit.model.name,
+        name = fit.model.name if len(effects) == len(fit.model.effects) else ("+".join(effects) or "baseline")
+        return cls(principle=principle, params=params, mechanisms=mech, name=name,
                    source="gdfe diagnose", data=info, version=__version__, columns=columns, labels=labels,
                    warnings=notes)
 

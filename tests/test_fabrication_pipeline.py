@@ -185,11 +185,12 @@ def test_design_command_letters_and_errors(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_readme_fabrication_commands(tmp_path, monkeypatch, capsys):
-    """The commands of the README's "From drawing to printer and back" run as written."""
+    """The commands of the guide's "From drawing to printer and back" (docs/fabrication.md) run as written."""
     import shlex
 
     root = EXAMPLES.parents[1]
-    section = (root / "README.md").read_text().split("### From drawing to printer and back")[1].split("\n### ")[0]
+    section = (root / "docs" / "fabrication.md").read_text().split("## From drawing to printer and back")[1]
+    section = section.split("\n## ")[0]
     (block,) = re.findall(r"```bash\n(.*?)```", section, flags=re.S)
     (tmp_path / "docs").symlink_to(root / "docs")
     monkeypatch.chdir(tmp_path)

@@ -140,6 +140,9 @@ def test_every_registered_study_runs_at_its_coarsest_resolution(name, coarse_stu
     failing = [h for h in result.get("headlines", []) if not h["passed"]]
     assert not failing, failing
     assert result.get("converged", True), name
-    stored = json.loads((out / result["files"]["json"]).read_text())
-    assert stored["study"] == result["study"]
-    assert (out / result["files"]["png"]).is_file()
+    pngs, jsons = sorted(out.glob("*.png")), sorted(out.glob("*.json"))
+    assert pngs and jsons, (name, sorted(p.name for p in out.iterdir()))
+    for path in jsons:
+        json.loads(path.read_text())  # complete JSON
+    if "files" in result:
+        assert (out / result["files"]["png"]).is_file() and (out / result["files"]["json"]).is_file()
