@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from studies import blind_diagnosis as bd
-from studies.diagnosis_generators import GENERATORS, KINDS, SENSITIVITY, generate, heating, kinetics, outside
-from studies.diagnosis_generators.nominal import eq3, gdfe_fold, specimens
+from studies.diagnosis_generators import (GENERATORS, KINDS, SENSITIVITY, artefacts, columns, generate, heating,
+                                         kinetics, lag, measure, outside)
+from studies.diagnosis_generators.nominal import ONE_H, eq3, gdfe_fold, specimens
 
 GEN_DIR = Path(__file__).resolve().parents[1] / "studies" / "diagnosis_generators"
 COARSE = {"gdfe": "coarse", "fem": "coarse"}
@@ -20,7 +21,7 @@ def test_generators_do_not_import_the_diagnoser():
     """No module of the generators imports gdfe.diagnosis (its catalogue, closed forms, fits), at
     module level or inside a function."""
     files = sorted(GEN_DIR.glob("*.py"))
-    assert len(files) >= 6
+    assert len(files) >= 9 and {"artefacts.py", "columns.py", "lag.py"} <= {f.name for f in files}
     for f in files:
         for node in ast.walk(ast.parse(f.read_text())):
             names = []
@@ -34,6 +35,7 @@ def test_generators_do_not_import_the_diagnoser():
 
 def test_classes_and_share_of_null_or_outside():
     assert {g.kind for g in GENERATORS.values()} == set(KINDS)
+    assert {"null", "artefact", "column", "d_only", "process", "red_herring"} <= set(KINDS)
     specs = [s for s in bd._specs(bd.SETTINGS["coarse"]) if not s["sensitivity"]]
     share = np.mean([s["kind"] != "catalogue" for s in specs])
     assert share >= 0.4
@@ -46,11 +48,15 @@ def test_strengths_are_drawn_in_their_ranges():
         sp, s = bd._draw(spec)
         g = bd._generator(spec["generator"])
         for k, (lo, hi) in g.ranges.items():
-            if k in ("prestrain", "thickness"):
+            if k in ("prestrain", "thickness") or k not in s:
+                continue
+            if isinstance(s[k], list):
+                assert all(lo - 1e-12 <= x <= hi + 1e-12 for x in s[k]), (k, s[k])
                 continue
             v = abs(s[k]) if k == "lambda" else s[k]
             assert lo - 1e-12 <= v <= hi or (k == "lambda" and s[k] < 0 and v <= 0.5 * sp.L.min() + 1e-12), (k, v)
-        assert sp.L.size == 18 and sp.T_C.size == 18 and set(sp.batch) == {"b1", "b2", "b3"}
+        n = 30 if spec["design"] == "random30" else 18
+        assert sp.L.size == n and sp.T_C.size == n and set(sp.batch) == {"b1", "b2", "b3"}
 
 
 def test_specimens_reach_the_drawn_largest_fold():
@@ -117,6 +123,114 @@ def test_one_data_set_is_diagnosed_and_cached(tmp_path):
     assert rec["visible"] and rec["visibility"] > 0.06
     assert len(list(tmp_path.glob("*.npz"))) == 1
     assert [r["best"] for r in bd._job(spec)] == [rec["best"]]
+
+
+NEW = [n for n in GENERATORS if n not in bd.FIRST]
+
+
+@pytest.mark.parametrize("name", NEW)
+def test_new_generators_are_deterministic_and_finite(name):
+    """Each later generator, on a small data set of its first design set: the same seed gives the
+    same strengths, noise-free folds and measured folds; the folds are finite, one per specimen."""
+    g = GENERATORS[name]
+    spec = next(s for s in bd._specs({**bd.SETTINGS["coarse"], "sigmas": (0.03,)}) if s["generator"] == name)
+    runs = []
+    for _ in range(2):
+        sp, strengths = bd._draw(spec)
+        alpha, ok = generate(name, sp, strengths, COARSE)
+        noisy = measure(name, alpha, strengths, 0.03, np.random.default_rng(5))
+        runs.append((strengths, alpha, noisy))
+        assert alpha.shape == noisy.shape == (len(sp),) and np.all(np.isfinite(noisy)) and ok.all()
+        assert all(len(strengths[c]) == len(sp) for c in g.columns)
+        if spec["design"] == "one_h":
+            assert np.all(sp.h == ONE_H)
+    assert runs[0][0] == runs[1][0]
+    np.testing.assert_array_equal(runs[0][1], runs[1][1])
+    np.testing.assert_array_equal(runs[0][2], runs[1][2])
+
+
+def test_artefacts_columns_and_lag_by_hand():
+    a = np.array([1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(artefacts.offset(a, 0.15), a + 0.15)
+    np.testing.assert_array_equal(artefacts.outliers(a, [0, 2], [0.5, -0.5]), [1.5, 2.0, 2.5])
+    np.testing.assert_array_equal(artefacts.failed(a, [1]), [1.0, 0.0, 3.0])
+    # the scatter grows with the angle and has no bias
+    rng = np.random.default_rng(0)
+    b = np.array([0.5, 2.5])
+    x = np.array([artefacts.growing_scatter(b, 0.03, 2.0, rng) for _ in range(4000)]) - b
+    assert abs(x.mean(axis=0)).max() < 0.01 and x.std(axis=0)[1] / x.std(axis=0)[0] == pytest.approx(5.0, rel=0.1)
+    # the sag: alpha = alpha_0 - C cos(alpha); none at 90 degrees, less below, more above
+    s = columns.sag(np.array([0.5 * np.pi, 1.0, 2.5]), np.array([0.2, 0.2, 0.2]))
+    assert s[0] == pytest.approx(0.5 * np.pi) and s[1] < 1.0 and s[2] > 2.5
+    np.testing.assert_allclose(s - [0.5 * np.pi, 1.0, 2.5] + 0.2 * np.cos(s), 0.0, atol=1e-9)
+    # the moment of a 10 mm panel on a 3 mm hinge of hot film (3 MPa): 0.157 rad held level
+    assert columns.sag_compliance(3.0, 0.3, 0.29, 10.0, 3.0) == pytest.approx(
+        1.1e-6 * 9.81 * 0.59 * 100 / 2 * 12 * 3 / (3.0 * 0.29 ** 3))
+    # the heating lag: a thin coat reaches its shrink, a thick one less, by d alone
+    f = lag.reached(np.array([0.05, 0.3, 0.5]), 0.006)
+    assert f[0] == pytest.approx(1.0) and f[0] > f[1] > f[2] and f[2] == pytest.approx(1 - np.exp(-60 * 0.006 / 0.25))
+
+
+def _diag(named, verdict, best=None, effects=()):
+    return {"named": list(named), "best": best or named[0], "verdict": verdict, "effects": list(effects)}
+
+
+def test_strict_rule_on_hand_made_diagnoses():
+    """A wrong physical cause named alone is wrong; a measurement artefact or a factor is never a
+    wrong physical cause; a wrong cause inside a named set of several, partly explained and removing
+    less than half of the gap, is not credited."""
+    alone = _diag(["cure_depth"], "partly_explained", effects=[{"name": "cure_depth", "shrink": 0.3}])
+    assert bd.wrong_physics_credited(alone) == "cure_depth"
+    assert bd.wrong_physics_credited(alone, ["cure_depth"]) is None
+    assert not bd.strict_right("heating_lag", alone) and bd.is_right("heating_lag", ["cure_depth"], "partly_explained")
+    offset = _diag(["reading_offset"], "explained", effects=[{"name": "reading_offset", "shrink": 0.9}])
+    assert bd.wrong_physics_credited(offset) is None and bd.strict_right("reading_offset", offset)
+    assert bd.identified(offset)
+    # the kind the diagnosis gives wins over the name
+    told = _diag(["oddity"], "explained", effects=[{"name": "oddity", "effects": ["oddity"],
+                                                      "effect_kinds": ["measurement"], "shrink": 0.9}])
+    assert bd.wrong_physics_credited(told) is None
+    factor = _diag(["factor[theta_deg]"], "explained", effects=[{"name": "factor[theta_deg]", "shrink": 0.8}])
+    assert bd.wrong_physics_credited(factor) is None and bd.strict_right("anisotropic_film", factor)
+    undeclared = _diag(["partial_activation[theta_deg]"], "partly_explained",
+                       effects=[{"name": "partial_activation[theta_deg]", "shrink": 0.6}])
+    assert not bd.strict_right("anisotropic_film", undeclared)
+    assert bd.is_right("anisotropic_film", undeclared["named"], "partly_explained")
+    several = _diag(["saturation", "cure_depth"], "partly_explained",
+                    effects=[{"name": "saturation", "shrink": 0.4}, {"name": "cure_depth", "shrink": 0.35}])
+    assert bd.credited_model(several) is None and bd.wrong_physics_credited(several) is None
+    assert bd.strict_right("hard_cap", several)
+    # the same set, explained (or removing more than half of the gap): its chosen model is credited
+    assert bd.wrong_physics_credited({**several, "verdict": "explained"}) == "saturation"
+    assert bd.wrong_physics_credited({**several, "effects": [{"name": "saturation", "shrink": 0.7}]}) == "saturation"
+    # the right cause with a red herring's column named beside it
+    herring = _diag(["cure_depth", "partial_activation[humidity_pct]"], "explained",
+                    effects=[{"name": "cure_depth", "shrink": 0.8}])
+    assert bd.wrong_physics_credited(herring, ["cure_depth"]) is None
+    assert bd.is_right("cure_depth_herring", herring["named"], "explained")
+    assert not bd.strict_right("cure_depth_herring", herring)
+    assert bd.strict_right("cure_depth_herring", _diag(["cure_depth"], "explained"))
+    # flagged rows count for outliers; the baseline credits nothing
+    assert bd.flagged_rows({"outliers": [{"row": 4}, {"row": 9}]}) == [4, 9]
+    found = {"named": ["baseline"], "best": "baseline", "verdict": "explained",
+             "artefacts": {"outliers": {"rows": [7, 30]}, "failed_specimens": {"rows": [7, 20]},
+                           "growing_noise": {"detected": False}}}
+    assert bd.flagged_rows(found) == [7, 20, 30] and bd.identified(found)
+    assert bd.strict_right("outliers", found) and not bd.strict_right("reading_offset", found)
+    assert bd.growing_noise_detected({"artefacts": {"growing_noise": {"detected": True}}})
+    assert bd.credited_model(_diag(["baseline"], "no_gap")) is None
+    assert bd.model_terms("cure_depth+factor[T_C]") == [("cure_depth", "physics"), ("factor[T_C]", "factor")]
+
+
+def test_roles_are_passed_only_where_the_diagnosis_takes_them():
+    def with_roles(tests, *, sigma=None, roles=None):
+        return roles
+
+    def without(tests, *, sigma=None):
+        return None
+
+    assert bd.takes_roles(with_roles) and not bd.takes_roles(without)
+    assert bd.ROLES == {"T_C": "oven_temperature"}
 
 
 def test_is_right_and_confusions():

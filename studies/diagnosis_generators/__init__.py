@@ -16,13 +16,19 @@ What the generators use:
   WLF time-temperature shift with a stretched-exponential relaxation), directional heating of
   the free face (:mod:`.heating`);
 * **out-of-catalogue** effects (:mod:`.outside`): physically plausible effects the catalogue
-  lacks.
+  lacks;
+* **measurement artefacts** (:mod:`.artefacts`): a reading offset, outliers, scatter growing
+  with the angle, specimens that did not fold;
+* effects carried by a **column** nobody declared (:mod:`.columns`): the film's anisotropic
+  shrink with the hinge's angle to the draw direction, the panel's sag with its length;
+* a **heating lag** of the coat alone (:mod:`.lag`).
 
-:data:`GENERATORS` lists them by name with their class (``null``, ``catalogue``,
-``outside``) and, for the catalogue's, the diagnoser's answers counted right.
+:data:`GENERATORS` lists them by name with their class (:data:`KINDS`), what the package's rule
+counts right and the physical causes that are right to credit.
 Lengths in mm, angles in radians, temperatures in degrees C.
 """
 
-from studies.diagnosis_generators.registry import GENERATORS, KINDS, SENSITIVITY, Generator, generate
+from studies.diagnosis_generators.registry import (GENERATORS, KINDS, NAMING_KINDS, SENSITIVITY, Generator,
+                                                    generate, measure)
 
-__all__ = ["GENERATORS", "SENSITIVITY", "KINDS", "Generator", "generate"]
+__all__ = ["GENERATORS", "SENSITIVITY", "KINDS", "NAMING_KINDS", "Generator", "generate", "measure"]

@@ -1,6 +1,7 @@
 """The nominal world: GDFE hinge specimens contracting by the paper's principle.
 
-A data set is 18 specimens ``(L, d, h)`` [mm] -- Table 1's, or random ones -- with the columns a
+A data set is 18 specimens ``(L, d, h)`` [mm] -- Table 1's, or random ones (also at one film
+thickness, ``"one_h"``, or 30 of them, ``"random30"``) -- with the columns a
 lab would record beside them: the oven temperature ``T_C`` of each test and the print ``batch``
 (three batches of six). Without an effect, the fold of a specimen is the GDFE simulation of
 :func:`gdfe.hinge` (a narrow strip, 16/24/32 cells across the hinge at coarse/default/fine
@@ -16,10 +17,11 @@ import dataclasses
 
 import numpy as np
 
+from gdfe import paper
 from gdfe._validation import GdfeError, check_choice
 
 __all__ = ["Specimens", "specimens", "eq3", "gdfe_fold", "gdfe_folds", "CELLS", "MAX_FOLD", "T_RANGE",
-           "DESIGN_SETS", "N_RANDOM", "BATCHES"]
+           "DESIGN_SETS", "DESIGNS", "N_RANDOM", "BATCHES", "ONE_H"]
 
 #: Cells across the hinge per resolution.
 CELLS = {"coarse": 16, "default": 24, "fine": 32}
@@ -27,8 +29,13 @@ CELLS = {"coarse": 16, "default": 24, "fine": 32}
 MAX_FOLD = (2.5, 3.0)
 #: Oven temperatures recorded with the tests [degrees C].
 T_RANGE = (120.0, 160.0)
+#: Design sets every generator is run on (unless it names its own).
 DESIGN_SETS = ("table1", "random")
+#: Every design set: besides those, 18 random specimens at one film thickness and 30 random ones.
+DESIGNS = ("table1", "random", "one_h", "random30")
 N_RANDOM = 18
+#: Film thickness of the ``"one_h"`` design set [mm] (Table 1's).
+ONE_H = paper.H
 #: Print batches recorded with the tests.
 BATCHES = ("b1", "b2", "b3")
 #: Largest cell [mm] and the strip's width [mm] (narrow: the fold does not depend on it).
@@ -71,19 +78,21 @@ def eq3(K, d, h):
 
 def specimens(design, rng):
     """The specimens of a data set: Table 1's 18 (``h = 0.29 mm``) or 18 random ones (``L``
-    uniform in 1.5-6 mm, ``d`` log-uniform in 0.1-0.5 mm, ``h`` uniform in 0.2-0.4 mm), with
+    uniform in 1.5-6 mm, ``d`` log-uniform in 0.1-0.5 mm, ``h`` uniform in 0.2-0.4 mm; at
+    ``"one_h"`` every ``h`` is :data:`ONE_H`; ``"random30"``: 30 of them), with
     oven temperatures uniform in :data:`T_RANGE`, three batches of six at random, and ``K``
     giving a largest nominal fold in :data:`MAX_FOLD`."""
     import gdfe
 
-    check_choice("design", design, DESIGN_SETS)
+    check_choice("design", design, DESIGNS)
     if design == "table1":
         t = gdfe.load_folding_tests(gdfe.TABLE1)
         L, d, h = t.L.copy(), t.d.copy(), t.h.copy()
     else:
-        L = rng.uniform(1.5, 6.0, N_RANDOM)
-        d = np.exp(rng.uniform(np.log(0.1), np.log(0.5), N_RANDOM))
-        h = rng.uniform(0.2, 0.4, N_RANDOM)
+        n = 30 if design == "random30" else N_RANDOM
+        L = rng.uniform(1.5, 6.0, n)
+        d = np.exp(rng.uniform(np.log(0.1), np.log(0.5), n))
+        h = np.full(n, ONE_H) if design == "one_h" else rng.uniform(0.2, 0.4, n)
     n = L.size
     T = rng.uniform(*T_RANGE, n)
     batch = np.array(BATCHES)[rng.permutation(np.arange(n) % len(BATCHES))]
