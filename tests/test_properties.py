@@ -203,8 +203,16 @@ def _check_result(design, res):
         size = float(np.linalg.norm(np.ptp(design.mesh.points, axis=0)))
         moved = gdfe.shape_distance(again.points, res.points)["max"]
         bound = 10.0 * max(res.tol, 1e-6) * size
-        assert moved <= bound, (f"converged result moved {moved:.3g} mm by a tight re-solve (size {size:.3g} mm, "
-                                f"tol {res.tol:g})")
+        if again.converged:
+            assert moved <= bound, (f"converged result moved {moved:.3g} mm by a tight re-solve (size {size:.3g} mm, "
+                                    f"tol {res.tol:g})")
+        else:
+            # the tight solve drifts along a near-zero-energy mode (a cell held by one edge of its
+            # neighbour turns freely: measured 8.8e-3 mm moved for a 5.8e-8 relative energy change):
+            # the equilibrium is not unique, and the converged result is one of its states
+            assert again.energy >= res.energy * (1 - 1e-6), (
+                f"a tight re-solve found an energy {1 - again.energy / res.energy:.2g} of itself lower than the "
+                f"converged result's")
     if not res.converged:
         assert res.summary()["converged"] is False
 

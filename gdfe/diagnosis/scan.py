@@ -89,6 +89,8 @@ def _read_mesh(path):
     import meshio
 
     fmt = path.suffix[1:].upper()
+    if fmt == "PLY":
+        _check_ply_header(path)
     said = io.StringIO()
     try:
         with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said):
@@ -102,6 +104,22 @@ def _read_mesh(path):
     if said.getvalue().strip():
         log.warning("%s: meshio: %s", path.name, said.getvalue().strip())
     return mesh
+
+
+#: How far into a PLY file its header must end [bytes].
+PLY_HEADER_MAX = 1 << 20
+
+
+def _check_ply_header(path):
+    """A PLY file must open with ``ply`` and close its header with ``end_header``: meshio's reader
+    loops for ever on a header that never ends (it reads past the end of the file line by line)."""
+    with open(path, "rb") as f:
+        head = f.read(PLY_HEADER_MAX)
+    if not head.startswith(b"ply"):
+        raise GdfeError(f"{path.name}: expected a PLY file starting with 'ply', got {head[:16]!r}")
+    if b"end_header" not in head:
+        raise GdfeError(f"{path.name}: expected a PLY header ending with 'end_header' within its first "
+                        f"{PLY_HEADER_MAX // 1024} KiB, got none (a truncated or corrupt file)")
 
 
 def _read_csv(path):
