@@ -116,10 +116,11 @@ def _check_ply_header(path):
     with open(path, "rb") as f:
         head = f.read(PLY_HEADER_MAX)
     if not head.startswith(b"ply"):
-        raise GdfeError(f"{path.name}: expected a PLY file starting with 'ply', got {head[:16]!r}")
+        raise GdfeError(f"{path.name}: expected a readable PLY file, got one meshio cannot read (it does not "
+                        f"start with 'ply': {head[:16]!r})")
     if b"end_header" not in head:
-        raise GdfeError(f"{path.name}: expected a PLY header ending with 'end_header' within its first "
-                        f"{PLY_HEADER_MAX // 1024} KiB, got none (a truncated or corrupt file)")
+        raise GdfeError(f"{path.name}: expected a readable PLY file, got one meshio cannot read (no "
+                        f"'end_header' in its first {PLY_HEADER_MAX // 1024} KiB: a truncated or corrupt header)")
 
 
 def _read_csv(path):
