@@ -38,6 +38,16 @@ def stored_figures(doc):
     return found
 
 
+#: Where the figures of every study's coarse run are kept (``gdfe report --resolution coarse --out``,
+#: the PNGs of each study's folder copied into ``docs/gallery/NAME/``).
+GALLERY = "gallery"
+
+
+def coarse_figures(name):
+    """Paths (relative to docs/) of the figures of the study's coarse run kept in the gallery."""
+    return sorted(p.relative_to(DOCS).as_posix() for p in (DOCS / GALLERY / name).glob("*.png"))
+
+
 def page(name, module, doc, figures):
     title, _, body = doc.strip().partition("\n")
     lines = [f"# {name}", "", f"**{markdown(title.strip())}**", "", markdown(body.strip()), "",
@@ -79,8 +89,10 @@ def main():
     cards, rows = [], []
     for name, module in STUDIES.items():
         doc = importlib.import_module(module).__doc__ or name
-        figures = [(path, f"{Path(path).name}, stored under docs/{Path(path).parent.as_posix()}/")
-                   for path in stored_figures(doc)]
+        figures = [(path, f"{Path(path).name}: the study at coarse resolution (`gdfe report --resolution coarse`)")
+                   for path in coarse_figures(name)]
+        figures += [(path, f"{Path(path).name}, stored under docs/{Path(path).parent.as_posix()}/")
+                    for path in stored_figures(doc) if not path.startswith(f"{GALLERY}/")]
         figures += RELATED.get(name, [])
         with mkdocs_gen_files.open(f"studies/{name}.md", "w") as f:
             f.write(page(name, module, doc, figures))
@@ -91,8 +103,9 @@ def main():
     index = ["# Studies", "",
              "One script per paper figure, comparison and diagnosis report: `gdfe study NAME` runs "
              "one, `gdfe report --out DIR` runs them all into an HTML report. The pictures are those "
-             "the studies stored in the repository; this site runs none of them ([how these pages "
-             "are made](../about.md)).",
+             "of every study's coarse run (`gdfe report --resolution coarse`, kept in `docs/gallery/`) "
+             "and those stored from their default runs; this site runs none of them ([how these "
+             "pages are made](../about.md)).",
              "", "## With stored figures", "",
              '<div class="grid cards" markdown>', ""] + cards + [
              "</div>", "", "## Run them to see their figures", "",

@@ -663,7 +663,10 @@ def cost(rows, out, sigma=0.03, seed=0):
     oven temperature column and three batches, angles of a cure-depth world plus noise. The
     child runs ``python -m gdfe diagnose FILE --sigma S --check none --json OUT`` and reports
     its own wall time, processor time (user + system, ``resource.getrusage``: on a machine
-    shared with other work the wall time also counts their share) and peak resident memory.
+    shared with other work the wall time also counts their share) and peak resident memory (the
+    kernel's high-water mark of the child's own memory, ``VmHWM``: Linux carries ``ru_maxrss``
+    over an exec, so a child started from a large parent, such as a long test session, reported
+    the parent's 1 056 MiB for a diagnosis that peaks at 147 MiB).
 
     Returns
     -------
@@ -696,7 +699,13 @@ def cost(rows, out, sigma=0.03, seed=0):
              "dt = time.perf_counter() - t0\n"
              "u = resource.getrusage(resource.RUSAGE_SELF)\n"
              "cpu = u.ru_utime - u0.ru_utime + u.ru_stime - u0.ru_stime\n"
-             "print(json.dumps({'rc': rc, 'seconds': dt, 'cpu_seconds': cpu, 'peak_rss_mib': u.ru_maxrss / 1024.0}))\n")
+             "peak = u.ru_maxrss / 1024.0\n"
+             "try:\n"
+             "    with open('/proc/self/status') as f:\n"
+             "        peak = next(int(l.split()[1]) for l in f if l.startswith('VmHWM:')) / 1024.0\n"
+             "except (OSError, StopIteration, ValueError):\n"
+             "    pass\n"
+             "print(json.dumps({'rc': rc, 'seconds': dt, 'cpu_seconds': cpu, 'peak_rss_mib': peak}))\n")
     args = ["diagnose", str(csv), "--sigma", f"{sigma:g}", "--check", "none", "--json", str(js)]
     load = os.getloadavg()[0]
     done = subprocess.run([sys.executable, "-c", child, *args], capture_output=True, text=True, check=True)
