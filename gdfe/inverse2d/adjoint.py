@@ -227,6 +227,7 @@ def contraction_gradient(f, dJ_dV, hessian=None):
     n = design.mesh.n_points
     g = check_array("dJ_dV", dJ_dV, shape=(n, 3)).ravel()
     t0 = time.perf_counter()
+    log.debug("adjoint solve: %d vertices", n, extra={"progress": {"event": "stage", "stage": "adjoint solve"}})
     H = exact_hessian(f) if hessian is None else hessian
     held = rigid_gauge(f.points)
     free = np.setdiff1d(np.arange(3 * n), held)
