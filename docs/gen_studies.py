@@ -106,10 +106,12 @@ def main():
              "of every study's coarse run (`gdfe report --resolution coarse`, kept in `docs/gallery/`) "
              "and those stored from their default runs; this site runs none of them ([how these "
              "pages are made](../about.md)).",
-             "", "## With stored figures", "",
+             "", "## Figures", "",
              '<div class="grid cards" markdown>', ""] + cards + [
-             "</div>", "", "## Run them to see their figures", "",
-             "| study | reproduces | run it |", "|---|---|---|"] + rows + [""]
+             "</div>", ""]
+    if rows:
+        index += ["## Run them to see their figures", "",
+                  "| study | reproduces | run it |", "|---|---|---|"] + rows + [""]
     with mkdocs_gen_files.open("studies/index.md", "w") as f:
         f.write("\n".join(index))
 
