@@ -1008,7 +1008,7 @@ def plot(result, out):
     against sigma."""
     plt = pyplot()
     s = result.get("accuracy")
-    fig, axes = plt.subplots(1, 3, figsize=(18, 4.8), gridspec_kw={"width_ratios": [1, 1, 1.3]})
+    fig, axes = plt.subplots(1, 3, figsize=(19, 6.4), gridspec_kw={"width_ratios": [1, 1.15, 1.1]})
     if s:
         goal = f"{SIGMA_GOAL:g}" if f"{SIGMA_GOAL:g}" in s else next(iter(s))
         m = s[goal]["confusion"]["verdict"]
@@ -1027,15 +1027,25 @@ def plot(result, out):
         for k, mk in zip(s[goal]["classes"], "os^vD<>p"):
             if s[goal]["classes"][k]["n"]:
                 ax.plot(sig, [s[f"{x:g}"]["classes"][k]["accuracy_strict"] for x in sig], marker=mk, label=k)
-        ax.axhline(ACCURACY_GOAL, color="0.5", ls="--", lw=0.8)
+        ax.axhline(ACCURACY_GOAL, color="0.5", ls="--", lw=0.8, label=f"goal {ACCURACY_GOAL:g}")
         ax.set(xscale="log", xlabel="noise sigma [rad]", ylabel="accuracy, strict rule", ylim=(0, 1.02))
-        ax.legend(fontsize=8)
+        ax.set_title("accuracy per class", fontsize=10)
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+        # per generator: a table of colours and numbers (22 lines on one axis are unreadable)
         ax = axes[2]
-        for g in s[goal]["generators"]:
-            ax.plot(sig, [s[f"{x:g}"]["generators"][g]["accuracy_strict"] for x in sig], marker=".", label=g)
-        ax.axhline(ACCURACY_GOAL, color="0.5", ls="--", lw=0.8)
-        ax.set(xscale="log", xlabel="noise sigma [rad]", ylabel="accuracy per generator, strict", ylim=(0, 1.02))
-        ax.legend(fontsize=6, ncol=3)
+        gens = list(s[goal]["generators"])
+        A = np.array([[np.nan if (v := s[f"{x:g}"]["generators"].get(g, {}).get("accuracy_strict")) is None else v
+                       for x in sig] for g in gens], float)
+        ax.imshow(A, cmap="RdYlGn", vmin=0.0, vmax=1.0, aspect="auto")
+        for i in range(A.shape[0]):
+            for j in range(A.shape[1]):
+                if np.isfinite(A[i, j]):
+                    ax.text(j, i, f"{A[i, j]:.2f}", ha="center", va="center", fontsize=7,
+                            color="white" if A[i, j] < 0.15 or A[i, j] > 0.85 else "black")
+        ax.set_xticks(range(len(sig)), [f"{x:g}" for x in sig], fontsize=8)
+        ax.set_yticks(range(len(gens)), gens, fontsize=7)
+        ax.set_xlabel("noise sigma [rad]")
+        ax.set_title("accuracy per generator, strict rule", fontsize=10)
     fig.tight_layout()
     fig.savefig(Path(out) / f"{NAME}.png", dpi=110)
     plt.close(fig)
