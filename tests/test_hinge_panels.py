@@ -77,3 +77,16 @@ def test_held_out_loop_diagnose_model_out_hinge_works_for_every_table1_specimen(
         assert status == 0, (k, held, out)
         assert out["converged"]
         assert abs(out["error_rad"]) < 0.02, (k, held, out["error_rad"])
+
+
+def test_cli_says_the_panels_were_lengthened(tmp_path, capsys):
+    """``gdfe hinge --model`` says in its text and JSON how far the panels were lengthened."""
+    path = spreading(2.0).save(tmp_path / "M.toml")
+    assert main(["hinge", "-L", "1.6", "--d", "0.33", "--panel-length", "0.5", "--model", str(path), "-q"]) == 0
+    assert "panels lengthened to" in capsys.readouterr().out
+    assert main(["hinge", "-L", "1.6", "--d", "0.33", "--panel-length", "0.5", "--model", str(path), "--json",
+                 "-q"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["panel_lengthened_from_mm"] == pytest.approx(0.5, abs=0.06)
+    assert out["panel_reach_mm"] == pytest.approx(1.0, abs=0.11)  # lambda / 2, within a cell
+    assert out["panel_length_mm"] == pytest.approx(out["panel_lengthened_from_mm"] + out["panel_reach_mm"])

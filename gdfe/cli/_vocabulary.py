@@ -115,7 +115,8 @@ COMMAND_ALIASES = {
 
 #: command -> its own top-level keys (not shared quantities).
 COMMAND_KEYS = {
-    "hinge": ("K", "fold_angle_eq1_rad", "fold_angle_eq2_rad", "fold_angle_model_rad", "error_rad"),
+    "hinge": ("K", "fold_angle_eq1_rad", "fold_angle_eq2_rad", "fold_angle_model_rad", "error_rad",
+              "panel_lengthened_from_mm", "panel_reach_mm"),
     "simulate": ("design", "spacing_mm", "cells_by_material", "kind", "face", "source", "d_mm_range",
                  "fold_angle_rad", "crease_angles", "panel_angles", "bbox_mm", "exported", "pixel_mm"),
     "design": ("choices", "parts", "package", "letters"),

@@ -96,6 +96,13 @@ def _run(args, folder):
             folder.status.update(converged=bool(res.converged), status=status_word(res))
             out["files"] = write_outputs(res, args.out, "hinge", out, progress=progress_mode(args),
                                          command="hinge")
+    lengthened = ""
+    if "panel_lengthened_from_mm" in design.meta:  # the model's contraction reached through the panels
+        out["panel_lengthened_from_mm"] = design.meta["panel_lengthened_from_mm"]
+        out["panel_reach_mm"] = design.meta["panel_reach_mm"]
+        lengthened = (f"  panels lengthened to {out['panel_length_mm']:.3g} mm: the model's contraction reaches "
+                      f"{out['panel_reach_mm']:.3g} mm into them; the fold is measured on their outer "
+                      f"{out['panel_lengthened_from_mm']:.3g} mm\n")
     d_text = f"d={args.d:g} mm" if args.d is not None else "R given (no d)"
     text = (f"hinge L={args.length:g} mm, {d_text}, h={args.h:g} mm, R={R:.4f}, nz={args.nz}\n"
             f"  GDFE fold angle  {alpha:.4f} rad ({math.degrees(alpha):.1f} deg)\n"
@@ -103,8 +110,8 @@ def _run(args, folder):
                if model is not None else
                f"  Eq. 1            {out['fold_angle_eq1_rad']:.4f} rad (error {out['error_rad']:+.4f})\n"
                if out["fold_angle_eq1_rad"] is not None else "")
-            + f"  Eq. 2 (1-R)L/h   {out['fold_angle_eq2_rad']:.4f} rad\n"
-            f"  {iterations_text(res)}, residual {res.residual:.1e}, {res.seconds:.2f} s, {design.n_cells} elements\n"
+            + f"  Eq. 2 (1-R)L/h   {out['fold_angle_eq2_rad']:.4f} rad\n" + lengthened
+            + f"  {iterations_text(res)}, residual {res.residual:.1e}, {res.seconds:.2f} s, {design.n_cells} elements\n"
             + contact_text(res)
             + (f"\n  wrote {args.out}/hinge.pvd (open in ParaView), hinge.png, result.json" if args.out else ""))
     emit(out, args.json, text, command="hinge")
