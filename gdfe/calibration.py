@@ -250,11 +250,7 @@ class CalibrationFit:
 
     def slope(self, d, h):
         """``alpha / L`` [rad/mm] of this reading."""
-        d = np.asarray(d, float)
-        h = np.asarray(h, float)
-        if self.model == "eq1-d1":
-            return self.K * np.sqrt(h / d)
-        return self.K / h * (h / d) ** self.p
+        return reading_slope(self.model, self.K, self.p, d, h)
 
     def alpha(self, L, d, h):
         """Fold angle [rad] of this reading."""
@@ -294,6 +290,16 @@ class CalibrationFit:
                   + ("; every angle is the same, so there is no spread to explain" if math.isnan(self.r2) else ""),
                   f"rmse   {self.rmse:.4f} rad", f"n      {self.n}"]
         return "\n".join(lines)
+
+
+def reading_slope(model, K, p, d, h):
+    """``alpha / L`` [rad/mm] of a reading of Eq. 1 with coefficient ``K`` and exponent ``p``:
+    ``K sqrt(h/d)`` (eq1-d1) or ``K / h (h/d)^p`` (eq1 is power with p = 1.5, power any p)."""
+    d = np.asarray(d, float)
+    h = np.asarray(h, float)
+    if model == "eq1-d1":
+        return K * np.sqrt(h / d)
+    return K / h * (h / d) ** p
 
 
 def regressor(model, L, d, h):

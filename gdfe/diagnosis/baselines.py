@@ -29,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from gdfe._validation import GdfeError
+from gdfe.calibration import reading_slope
 from gdfe.diagnosis.effects import Model, Param
 
 __all__ = ["BASELINES", "DESCRIPTIONS", "FormModel", "baseline_model", "form_shares"]
@@ -90,9 +91,8 @@ class FormModel(Model):
         """``c = 1 - R`` this form gives (``alpha = c L / h``)."""
         if self._bilayer:
             return self._bilayer.contraction(params, d, h)
-        if self.form == "eq1-d1":
-            return params[0] * h * np.sqrt(h / d)
-        return params[0] * np.exp(params[1] * np.log(h / d))
+        p = params[1] if self.form == "power" else None
+        return reading_slope(self.form, params[0], p, d, h) * np.asarray(h, float)
 
     def predict(self, params, L, d, h, x=None, group=None):
         return self.contraction(params, d, h) * L / h
