@@ -110,9 +110,7 @@ def reading_offset(fit):
     """The reading offset [rad] a diagnosed model was fitted with (0 without ``reading_offset``): how the
     tests were read, not how the parts fold, so it is not carried to parts (the model file leaves it out)
     but it is added back where a model's fold is compared with a test's reading."""
-    if "reading_offset" not in fit.model.effects:
-        return 0.0
-    return float(dict(zip(fit.model.param_names, np.asarray(fit.params, float)))["offset"])
+    return float(fit.param_dict()["offset"]) if "reading_offset" in fit.model.effects else 0.0
 
 
 def held_out(resolution, out=None):
