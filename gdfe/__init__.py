@@ -16,6 +16,7 @@ from gdfe.mesh import HexMesh, sheet_mesh
 from gdfe.model import DeformationModel, load_model, paper_model
 from gdfe.solver import (ConvergenceError, Penetration, Result, Solver, check_penetration, energy, rest_shapes,
                          simulate, system_matrix)
+from gdfe import fabrication  # noqa: E402,F401  its readers of drawings and packages register with load_design
 
 
 __all__ = [

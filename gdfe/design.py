@@ -21,7 +21,7 @@ import numpy as np
 from gdfe._images import read_mask
 from gdfe._validation import (GdfeError, GdfeTypeError, check_choice, check_file, check_int, check_keys,
                               check_positive, check_length, check_number, check_ratio, describe,
-                              read_text, R_MIN, RATIO_WHAT)
+                              read_text, LENGTH_RANGE, R_MIN, RATIO_WHAT)
 from gdfe.calibration import DEFAULT_H, PAPER_K
 from gdfe.material import LAYOUT_CHARS, Material
 from gdfe.mesh import DEFAULT_NZ, HexMesh, sheet_mesh
@@ -31,21 +31,18 @@ from gdfe.resources import check_design_cells
 log = logging.getLogger(__name__)
 
 __all__ = ["Material", "Design", "grid_design", "hinge", "from_masks", "from_rows", "load_design", "DESIGN_KEYS",
+           "DESIGN_READERS", "DesignSource", "FilmSpec", "register_design_reader", "paper_film", "check_process",
            "check_resolution", "MAX_CELL_TURN"]
 
-#: The sections of a design file and the keys of each (:func:`load_design`).
-DESIGN_KEYS = {
-    "film": ("h", "R", "d", "K", "nz", "isotropy", "model"),
-    "hinge": ("length", "width", "panel_length", "cell_size", "face"),
-    "layout": ("pixel", "rows"),
-    "masks": ("pixel", "top", "bottom", "film", "d_top", "d_bottom"),
-    "svg": ("file", "pixel", "by"),
-    "fold": ("file", "pixel", "hinge_width", "scale"),
-    "process": None,  # the part's process variables: any names
-    "simulate": ("steps", "tol", "max_iter", "method", "contact", "on_drift"),
-}
-#: The sections of which a design file has exactly one: how its film is laid out.
-DESIGN_KINDS = ("hinge", "layout", "masks", "svg", "fold")
+#: The sections of a design file that every design has, around the tables of the design sources.
+_FIXED_KEYS = [("film", ("h", "R", "d", "K", "nz", "isotropy", "model")),
+               ("process", None),  # the part's process variables: any names
+               ("simulate", ("steps", "tol", "max_iter", "method", "contact", "on_drift"))]
+#: The sections of a design file and the keys of each (:func:`load_design`): ``[film]``, one table per
+#: registered design source (:func:`register_design_reader`), ``[process]`` and ``[simulate]``.
+DESIGN_KEYS = dict(_FIXED_KEYS)
+#: The sections of which a design file has exactly one: how its film is laid out (the registered sources).
+DESIGN_KINDS = []
 
 
 @dataclasses.dataclass
@@ -246,8 +243,8 @@ def grid_design(material2d, R=None, h=DEFAULT_H, pixel=0.1, nz=DEFAULT_NZ, isotr
     GdfeError
         Among others, cells too long for their fold (:func:`check_resolution`).
     """
-    return _warn_aspect(check_resolution(_grid_design(material2d, R, h, pixel, nz, isotropy, film, regions2d, meta,
-                                                      d, model, process)))
+    return _warn_unused_process(_warn_aspect(check_resolution(_grid_design(
+        material2d, R, h, pixel, nz, isotropy, film, regions2d, meta, d, model, process))))
 
 
 def _warn_aspect(design):
@@ -262,18 +259,74 @@ def _warn_aspect(design):
     return design
 
 
+#: Process variables whose name says their unit, and the values a heat-shrinking part can have:
+#: a temperature in degrees Celsius above absolute zero and below the film's decomposition (polystyrene
+#: degrades from about 300 C; an oven for shrink film runs at 100-160 C), in kelvin likewise, a time
+#: in seconds, minutes or hours that is not negative.
+PROCESS_UNIT_RANGES = {"_C": (-273.15, 500.0, "a temperature in degrees Celsius"),
+                       "_K": (0.0, 773.15, "a temperature in kelvin"),
+                       "_s": (0.0, math.inf, "a time in seconds"), "_min": (0.0, math.inf, "a time in minutes"),
+                       "_h": (0.0, math.inf, "a time in hours")}
+
+
 def check_process(name, process):
-    """A part's process variables: None, or a mapping of names to finite numbers or text labels."""
+    """A part's process variables: None, or a mapping of names to finite numbers or text labels.
+
+    A number whose name ends in a unit (:data:`PROCESS_UNIT_RANGES`: ``T_C`` in degrees Celsius, ``t_s``
+    in seconds, ...) must lie in that unit's physical range.
+    """
     if process is None:
         return None
     if not isinstance(process, dict):
         raise GdfeTypeError(f"{name}: expected a mapping of process variables (e.g. {{'T_C': 150, 'lot': 'B'}}), "
                             f"got {describe(process)}")
     for k, v in process.items():
-        if not isinstance(k, str) or isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, str)) or (
+        if not isinstance(k, str) or not k.strip():
+            raise GdfeError(f"{name}: expected names of process variables, got the name {describe(k)}")
+        if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, str)) or (
                 isinstance(v, float) and not np.isfinite(v)):
             raise GdfeError(f"{name}: {k}: expected a finite number or a text label, got {describe(v)}")
+        if isinstance(v, str) and not v.strip():
+            raise GdfeError(f"{name}: {k}: expected a finite number or a text label, got an empty text")
+        unit = next((u for u in PROCESS_UNIT_RANGES if k.endswith(u) and len(k) > len(u)), None)
+        if unit is not None and not isinstance(v, str):
+            lo, hi, what = PROCESS_UNIT_RANGES[unit]
+            if not lo <= v <= hi:
+                raise GdfeError(f"{name}: {k}: expected {what} in [{lo:g}, {hi:g}], got {v:g}")
     return dict(process)
+
+
+def process_used(model, process):
+    """The process variables of ``process`` that ``model``'s process mechanisms read (a sorted list)."""
+    if not process or model is None:
+        return []
+    cols = getattr(model, "columns", {}) or {}
+    return sorted(k for k in process if k in cols.values())
+
+
+def _record_process(design, model, process):
+    """Write what made the contraction into ``design.meta``: its source, the process variables and which
+    of them the model used."""
+    meta = design.meta
+    meta["contraction_source"] = (f"model {model.name!r}" if model is not None else "R given")
+    if process:
+        meta["process"] = dict(process)
+        meta["process_used"] = process_used(model, process)
+    return design
+
+
+def _warn_unused_process(design, name="process"):
+    """One warning naming the process variables the contraction did not use (kept in ``meta``)."""
+    given = design.meta.get("process") or {}
+    unused = [k for k in given if k not in (design.meta.get("process_used") or [])]
+    if unused and "process_unused" not in design.meta:  # said once, by the first caller that sees it
+        why = ("the contraction ratio R was given directly" if design.model is None else
+               f"model {design.model.name!r} has no process mechanism that reads them (it reads "
+               f"{', '.join(sorted((design.model.columns or {}).values())) or 'none'})")
+        log.warning("%s: %s not used: %s; recorded in the result, but they change nothing", name,
+                    ", ".join(unused), why)
+        design.meta["process_unused"] = unused
+    return design
 
 
 def _grid_design(material2d, R, h, pixel, nz, isotropy, film, regions2d, meta, d, model, process):
@@ -299,6 +352,7 @@ def _grid_design(material2d, R, h, pixel, nz, isotropy, film, regions2d, meta, d
     if R is None and d is None:
         raise GdfeError("R, d: expected a contraction ratio R, or the passive thickness d for the "
                         "deformation model")
+    check_design_cells("film", float(keep.sum()) * nz)  # before the mesh is made
     mesh = sheet_mesh(keep, dx, dy, h, nz=nz)
     i, j = mesh.cell_ij.T
     d_cells = None
@@ -313,12 +367,52 @@ def _grid_design(material2d, R, h, pixel, nz, isotropy, film, regions2d, meta, d
     if R is None:
         design = Design(mesh=mesh, material=material2d[i, j], R=1.0, h=h, isotropy=isotropy,
                         regions=regions, meta=meta, d=d_cells)
-        if process:
-            meta["process"] = dict(process)
-        return (model or paper_model()).apply(design, process)
+        model = model or paper_model()
+        return _record_process(model.apply(design, process), model, process)
     R2 = np.broadcast_to(np.asarray(R, float), material2d.shape)
-    return Design(mesh=mesh, material=material2d[i, j], R=R2[i, j], h=h, isotropy=isotropy,
-                  regions=regions, meta=meta, d=d_cells)
+    return _record_process(Design(mesh=mesh, material=material2d[i, j], R=R2[i, j], h=h, isotropy=isotropy,
+                                  regions=regions, meta=meta, d=d_cells), None, process)
+
+
+#: What each kind of design calls its film, for the message of a film in pieces.
+_FILM_NAMES = {"layout": "rows", "masks": "masks", "svg": "drawing", "fold": "crease pattern"}
+
+
+def check_one_piece(design):
+    """Refuse a design whose film is in several pieces (cells joined by no side) before a solve:
+    each piece would move on its own, and the solve has nothing to hold one piece against
+    another (it would run to its iteration limit). A design of several pieces is still a valid
+    geometry (for the penetration check of parts laid one into another); only its solve is refused.
+
+    Raises
+    ------
+    GdfeError
+        Naming the pieces (cells and extent in mm, the three largest).
+    """
+    from scipy import ndimage
+
+    mesh = design.mesh
+    ij = getattr(mesh, "cell_ij", None)
+    if ij is None or len(ij) == 0:
+        return
+    ij = np.asarray(ij, int)
+    shape = tuple(ij.max(axis=0) + 1)
+    film = np.zeros(shape, bool)
+    film[ij[:, 0], ij[:, 1]] = True
+    labels, n = ndimage.label(film)  # pieces joined side to side (cells touching at a corner are not joined)
+    if n <= 1:
+        return
+    sizes = np.bincount(labels.ravel())[1:]
+    cell_label = labels[ij[:, 0], ij[:, 1]]
+    where = []
+    for k in np.argsort(-sizes)[:3]:
+        pts = mesh.points[np.asarray(mesh.cells)[cell_label == k + 1].ravel()]
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        where.append(f"{sizes[k]} cells at x {lo[0]:.3g}-{hi[0]:.3g} mm, y {lo[1]:.3g}-{hi[1]:.3g} mm")
+    more = f" and {n - 3} more" if n > 3 else ""
+    kind = (design.meta or {}).get("kind")
+    raise GdfeError(f"{_FILM_NAMES.get(kind, 'film')}: expected one piece of film, got {n} pieces joined by no "
+                    f"cell side ({'; '.join(where)}{more}); join them, or simulate each piece as a design of its own")
 
 
 def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_length=1.0,
@@ -381,8 +475,12 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
             raise GdfeError("R, model: expected a contraction ratio R or a deformation model, not both")
         R = check_ratio("R", R)
     check_choice("face", face, ("top", "bottom"))
-    if cell_size is None:
+    if cell_size is None:  # derived: a cell too small is the length's or the width's, the values given
         cell_size = min(length / 16.0, width / 2.0)
+        if cell_size < LENGTH_RANGE[0]:
+            which, value, cells = ("width", width, 2) if width / 2.0 <= length / 16.0 else ("length", length, 16)
+            raise GdfeError(f"{which}: expected at least {cells * LENGTH_RANGE[0]:g} mm ({cells} cells of at least "
+                            f"{LENGTH_RANGE[0]:g} mm across it), got {value:g} mm")
     cell_size = check_length("cell_size", cell_size, allow_array=False)
     if cell_size > length:
         raise GdfeError(f"cell_size: expected at most the hinge's length {length:g} mm (a cell or more across the "
@@ -415,7 +513,7 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
         des.meta["panel_lengthened_from_mm"] = npanel * dx
         des.meta["panel_reach_mm"] = reached * dx
         npanel = longer
-    _warn_aspect(check_resolution(des, "cell_size"))
+    _warn_unused_process(_warn_aspect(check_resolution(des, "cell_size")))
     # x = 0 at the start of the hinge
     des.mesh.points[:, 0] -= npanel * dx
     return des
@@ -464,7 +562,7 @@ def _hinge_design(spec, npanel):
             "face": spec.face}
     if R is not None:
         return _grid_design(mat, R, spec.h, (dx, dy), nz, spec.isotropy, None, regions2d, meta,
-                            np.where(mat == int(code), np.nan if d is None else d, np.nan), None, None)
+                            np.where(mat == int(code), np.nan if d is None else d, np.nan), None, spec.process)
     dgrid = np.where(mat == int(code), d, np.nan)
     des = _grid_design(mat, None, spec.h, (dx, dy), nz, spec.isotropy, None, regions2d, meta, dgrid, model,
                        spec.process)
@@ -511,9 +609,12 @@ def from_rows(rows, R=None, h=DEFAULT_H, pixel=0.1, nz=DEFAULT_NZ, isotropy=1.0,
     if len(widths) != 1:
         raise GdfeError(f"rows: all rows must have the same length, got lengths {sorted(widths)}")
     grid = np.array([list(r) for r in rows])[::-1].T  # (nx, ny), j = 0 at the bottom row
-    bad = set(np.unique(grid)) - set(LAYOUT_CHARS) - {"."}
+    bad = sorted({str(c) for c in np.unique(grid)} - set(LAYOUT_CHARS) - {"."})
     if bad:
-        raise GdfeError(f"rows: unknown layout character(s) {sorted(bad)}; expected one of R T B S .")
+        where = next((k, r.index(c)) for k, r in enumerate(rows) for c in r if c in bad)
+        chars = " ".join(repr(c) for c in bad)
+        raise GdfeError(f"rows: unknown layout character(s) {chars} (first in rows[{where[0]}] at column "
+                        f"{where[1] + 1}); expected one of R T B S .")
     film = grid != "."
     if not film.any():
         raise GdfeError(f"rows: expected at least one cell of film (R T B S), got only '.' in {describe(rows)}")
@@ -581,21 +682,144 @@ def from_masks(top, bottom, pixel, R=None, h=DEFAULT_H, nz=DEFAULT_NZ, isotropy=
                        d=_one_side_d(mat, d, d_top, d_bottom), model=model, process=process)
 
 
-def load_design(path, model=None, process=None):
-    """Read a TOML design file; returns ``(design, options)``.
+# -- design sources: one loader, readers registered with it ------------------------------------------
+@dataclasses.dataclass(frozen=True)
+class FilmSpec:
+    """What turns a layout into contraction ratios: a design file's ``[film]`` (or the paper's film).
 
-    The file has a ``[film]`` table (``h``; ``R``, or ``d`` with a deformation model:
+    Attributes
+    ----------
+    h : float [mm]
+    R : float or None
+        The contraction ratio given directly (None: from ``model`` at ``d``).
+    d : float [mm] or None
+        Passive thickness of the coat.
+    nz : int
+    isotropy : float
+    model : DeformationModel or None
+    process : dict
+        The part's process variables (the file's ``[process]``, over which the caller's go).
+    default : bool
+        The paper's film, given to a file read alone without a model (a source that carries a film
+        of its own, a print package, keeps its own).
+    """
+
+    h: float
+    R: float | None
+    d: float | None
+    nz: int
+    isotropy: float
+    model: object
+    process: dict
+    default: bool = False
+
+
+@dataclasses.dataclass(frozen=True)
+class DesignSource:
+    """What every design reader receives: the file, its table, the film and the process variables.
+
+    Attributes
+    ----------
+    path : Path
+        The file read: a design file (TOML), or a drawing or package read alone.
+    kind : str
+        The reader's name (``"hinge"``, ``"svg"``, ...).
+    table : dict or None
+        The design file's table of this kind; None for a file read alone.
+    film : FilmSpec
+    """
+
+    path: object
+    kind: str
+    table: dict | None
+    film: FilmSpec
+
+    @property
+    def where(self) -> str:
+        """``NAME: [kind]`` (a table) or ``NAME`` (a file alone), the start of a message."""
+        return f"{self.path.name}: [{self.kind}]" if self.table is not None else self.path.name
+
+    def file(self, key, what="file"):
+        """The path that ``key`` of the table names, relative to the design file."""
+        value = self.table.get(key) if self.table is not None else None
+        if not isinstance(value, str) or not value:
+            raise GdfeError(f"{self.where} {key}: expected the path of a {what}, got {describe(value)}")
+        return self.path.parent / value
+
+    def masks_design(self, top, bottom, pixel, film=None, **kw):
+        """:func:`from_masks` with this source's film, model and process variables."""
+        f = self.film
+        return from_masks(top, bottom, pixel, f.R, h=f.h, nz=f.nz, isotropy=f.isotropy, film=film,
+                          d=kw.pop("d", f.d), model=f.model, process=f.process, **kw)
+
+
+@dataclasses.dataclass(frozen=True)
+class DesignReader:
+    """A registered reader of one design source (:func:`register_design_reader`)."""
+
+    kind: str
+    read: object
+    keys: tuple = ()
+    required: tuple = ()
+    suffixes: tuple = ()
+
+
+#: The readers :func:`load_design` knows, by kind; see :func:`register_design_reader`.
+DESIGN_READERS = {}
+
+
+def register_design_reader(kind, read, *, keys=(), required=(), suffixes=()):
+    """Teach :func:`load_design` a design source.
+
+    Every reader is called the same way, ``read(source) -> Design`` with a :class:`DesignSource`
+    (the file, its table, the :class:`FilmSpec` with the model and the process variables), whether the
+    source is a table of a design file (``[kind]`` with ``keys``, of which ``required`` must be
+    there) or a file read alone (its ``suffixes``, with the paper's film).
+
+    Modules that read other sources (:mod:`gdfe.fabrication`: SVG and FOLD drawings, print
+    packages) register here when they are imported; :mod:`gdfe` imports them.
+    """
+    if not isinstance(kind, str) or not kind.isidentifier() or kind in ("film", "process", "simulate"):
+        raise GdfeError(f"kind: expected the name of a design source, got {describe(kind)}")
+    DESIGN_READERS[kind] = DesignReader(kind, read, tuple(keys), tuple(required),
+                                        tuple(s.lower() for s in suffixes))
+    DESIGN_KEYS.clear()
+    DESIGN_KEYS.update(_FIXED_KEYS[:1] + [(k, r.keys) for k, r in DESIGN_READERS.items() if r.keys]
+                       + _FIXED_KEYS[1:])
+    DESIGN_KINDS[:] = [k for k, r in DESIGN_READERS.items() if r.keys]
+    return DESIGN_READERS[kind]
+
+
+def _reader_of_suffix(path):
+    suffix = path.suffix.lower()
+    return next((r for r in DESIGN_READERS.values() if suffix in r.suffixes), None)
+
+
+def paper_film(model=None, process=None):
+    """The film of a drawing or package read alone: the paper's (h, d of Figure 6, R by Eq. 3, or by
+    ``model`` from that d), one cell through its thickness."""
+    from gdfe import paper
+
+    return FilmSpec(h=paper.H, R=None, d=paper.FIG6_D, nz=1, isotropy=1.0, model=as_model(model) or paper_model(),
+                    process=check_process("process", process) or {}, default=model is None)
+
+
+def load_design(path, model=None, process=None):
+    """Read a design; returns ``(design, options)``.
+
+    A TOML design file has a ``[film]`` table (``h``; ``R``, or ``d`` with a deformation model:
     ``model = "M.toml"`` (a model file, relative to the design file) or ``K`` of the
-    paper's Eq. 3; optional ``nz``, ``isotropy``) and exactly one of:
+    paper's Eq. 3; optional ``nz``, ``isotropy``) and exactly one table of a registered design
+    source (:data:`DESIGN_READERS`):
 
     - ``[hinge]``: ``length``, optional ``width``, ``panel_length``, ``cell_size``, ``face``;
     - ``[layout]``: ``pixel`` and ``rows`` (strings of ``R T B S .``, first row on top);
     - ``[masks]``: ``pixel``, ``top``, ``bottom`` (image paths relative to the file), optional
       ``film``, and ``d_top``/``d_bottom`` where the two faces' coats differ;
-    - ``[svg]`` or ``[fold]``: a drawing (:func:`gdfe.fabrication.drawings.drawing_design`).
+    - ``[svg]`` or ``[fold]``: a drawing (registered by :mod:`gdfe.fabrication.drawings`).
 
-    A ``.svg`` or ``.fold`` file alone is read with the paper's film
-    (:func:`gdfe.fabrication.drawings.load_drawing`).
+    A file of a registered suffix (``.svg``, ``.fold``, a print package ``.zip``) is read alone,
+    with the paper's film (:func:`paper_film`).
 
     An optional ``[process]`` table gives the part's process variables (``T_C = 150``,
     ``lot = "B"``) to a model with process mechanisms. An optional ``[simulate]`` table is
@@ -605,7 +829,9 @@ def load_design(path, model=None, process=None):
     ``nz`` defaults to :data:`gdfe.mesh.DEFAULT_NZ` (1) for every kind of design. Every section and
     key is checked (:data:`DESIGN_KEYS`): an unknown one is an error with a "did you mean", a
     string or a boolean where a number belongs is an error, and each message names the file,
-    the section and the key.
+    the section and the key. The design's ``meta`` records what made its contraction
+    (``contraction_source``, the model file and its sha256, the process variables and which the
+    model used).
 
     Parameters
     ----------
@@ -616,23 +842,82 @@ def load_design(path, model=None, process=None):
         Process variables for the model's process mechanisms, over the file's ``[process]``
         table (``gdfe simulate --process``).
     """
+    path = check_file("design", path, what="design file")
+    process = check_process("process", process)
+    model_file = _model_file(model)
+    reader = _reader_of_suffix(path)
+    if reader is not None:  # a drawing or a package alone
+        source = DesignSource(path, reader.kind, None, paper_film(model, process))
+        des = _sourced(reader.read(source), source, model_file)
+        return des, {}
+    name = path.name
+    doc = _read_toml(path, "design file (TOML)")
+    _check_sections(name, doc)
+    proc = check_process(f"{name}: [process]", doc.get("process", {}))
+    proc = {**proc, **(process or {})}
+    film, file_model = _film(name, path, doc, model, proc)
+    kinds = [k for k in DESIGN_KINDS if k in doc]
+    if len(kinds) != 1:
+        raise GdfeError(f"{name}: expected exactly one of {', '.join(f'[{k}]' for k in DESIGN_KINDS)}; "
+                        f"got {', '.join(f'[{k}]' for k in kinds) if kinds else 'none'}")
+    kind = kinds[0]
+    reader = DESIGN_READERS[kind]
+    spec = doc[kind]
+    if film.R is None and film.d is None and not (kind == "masks" and ("d_top" in spec or "d_bottom" in spec)):
+        raise GdfeError(f"{name}: [film] needs R (contraction ratio) or d (passive thickness, mm)")
+    for key in reader.required:
+        if key not in spec:
+            raise GdfeError(f"{name}: [{kind}] is missing {key!r}")
+    try:
+        des = reader.read(DesignSource(path, kind, spec, film))
+    except GdfeError as exc:
+        if str(exc).startswith(name):
+            raise
+        first = re.split(r"[:=\s]", str(exc), maxsplit=1)[0]  # the key the message starts with
+        section = "film" if first in DESIGN_KEYS["film"] else kind if first in DESIGN_KEYS[kind] else None
+        raise type(exc)(f"{name}: [{section}] {exc}" if section else f"{name}: {exc}") from None
+    des = _sourced(des, DesignSource(path, kind, spec, film), model_file or file_model)
+    des.meta.setdefault("nz", film.nz)
+    return des, _simulate_options(name, doc)
+
+
+def _read_toml(path, what):
+    """A TOML file's document; a syntax error with the file, the line and, for a stray byte-order mark, its name."""
     try:
         import tomllib
     except ModuleNotFoundError:  # Python < 3.11
         import tomli as tomllib
-    path = check_file("design", path, what="design file")
-    if path.suffix.lower() in (".svg", ".fold"):  # a drawing alone (gdfe.fabrication.drawings)
-        from gdfe.fabrication.drawings import load_drawing
-
-        return load_drawing(path, from_masks, model=model)
-    name = path.name
+    text = read_text(path, what)  # a byte-order mark inside the file is named there
     try:
-        doc = tomllib.loads(read_text(path, "design file (TOML)"))
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise GdfeError(f"{name}: not valid TOML: {exc}") from None
-    _check_sections(name, doc)
-    proc = check_process(f"{name}: [process]", doc.get("process", {}))
-    proc = {**proc, **(process or {})}
+        raise GdfeError(f"{path.name}: not valid TOML: {exc}") from None
+
+
+def _model_file(model):
+    """``{"file", "sha256"}`` of a model given as a path (None otherwise)."""
+    import hashlib
+    from pathlib import Path
+
+    if not isinstance(model, (str, Path)):
+        return None
+    p = Path(model)
+    try:
+        return {"file": str(p), "sha256": hashlib.sha256(p.read_bytes()).hexdigest()}
+    except OSError:
+        return None  # load_model names the file when it reads it
+
+
+def _sourced(des, source, model_file):
+    """The design with what it was read from in ``meta``; one warning for process variables it did not use."""
+    des.meta.setdefault("source", str(source.path))
+    if model_file is not None:
+        des.meta["model_file"] = model_file
+    return _warn_unused_process(des, f"{source.path.name}: process")
+
+
+def _film(name, path, doc, model, proc):
+    """The design file's ``[film]`` as a :class:`FilmSpec`, and the model file it names (with its sha256)."""
     if "film" not in doc:
         raise GdfeError(f"{name}: missing [film] table (h, and R or d)")
     film = doc["film"]
@@ -644,6 +929,7 @@ def load_design(path, model=None, process=None):
     nz = check_int(f"{where} nz", film.get("nz", DEFAULT_NZ))
     iso = _entry(f"{where} isotropy", film.get("isotropy", 1.0), lambda n, v: check_number(
         n, v, minimum=0.0, maximum=1.0, what="a number in [0, 1]"))
+    file_model = None
     if model is not None or "model" in film:
         if R is not None:
             raise GdfeError(f"{name}: [film] gives R and a deformation model; expected one of them")
@@ -658,62 +944,15 @@ def load_design(path, model=None, process=None):
                 model = as_model(spec_model, base=path.parent)
             except GdfeError as exc:
                 raise type(exc)(f"{name}: [film] model: {exc}") from None
+            file_model = _model_file(path.parent / spec_model)
         model = as_model(model)
     elif R is None:
         model = paper_model(_entry(f"{where} K", film.get("K", PAPER_K), check_positive))
-    kinds = [k for k in DESIGN_KINDS if k in doc]
-    if len(kinds) != 1:
-        raise GdfeError(f"{name}: expected exactly one of [hinge], [layout], [masks], [svg], [fold]; "
-                        f"got {', '.join(f'[{k}]' for k in kinds) if kinds else 'none'}")
-    kind = kinds[0]
-    spec = doc[kind]
-    if R is None and d is None and not (kind == "masks" and ("d_top" in spec or "d_bottom" in spec)):
-        raise GdfeError(f"{name}: [film] needs R (contraction ratio) or d (passive thickness, mm)")
-    for key in DESIGN_KEYS[kind]:
-        if key not in spec and key in _REQUIRED.get(kind, ()):
-            raise GdfeError(f"{name}: [{kind}] is missing {key!r}")
-    where = f"{name}: [{kind}]"
-    try:
-        if kind == "hinge":
-            extra = {k: _entry(f"{where} {k}", spec[k], check_length)
-                     for k in ("width", "panel_length", "cell_size") if k in spec}
-            if "face" in spec:
-                extra["face"] = check_choice(f"{where} face", spec["face"], ("top", "bottom"))
-            des = hinge(_entry(f"{where} length", spec["length"], check_length), d=d, R=R, h=h, nz=nz, isotropy=iso,
-                        model=model, process=proc, **extra)
-        elif kind == "layout":
-            pixel = spec["pixel"]
-            pixel = (_entry(f"{where} pixel", pixel, check_length) if not isinstance(pixel, list) else
-                     _pair(f"{where} pixel", pixel))
-            rows = spec["rows"]
-            if not isinstance(rows, list) or not rows or not all(isinstance(r, str) and r for r in rows):
-                raise GdfeError(f"{where} rows: expected a list of strings of R T B S . (first row on top), "
-                                f"got {describe(rows)}")
-            des = from_rows(rows, R, h=h, pixel=pixel, nz=nz, isotropy=iso, d=d, model=model, process=proc)
-        elif kind in ("svg", "fold"):  # a drawing with this file's film (gdfe.fabrication.drawings)
-            from gdfe.fabrication.drawings import drawing_design
+    return FilmSpec(h=h, R=R, d=d, nz=nz, isotropy=iso, model=model, process=proc), file_model
 
-            des = drawing_design(kind, spec, path, lambda top, bottom, pixel, mask: from_masks(
-                top, bottom, pixel, R, h=h, nz=nz, isotropy=iso, film=mask, d=d, model=model, process=proc))
-        else:
-            base = path.parent
-            files = {}
-            for key in ("top", "bottom", "film"):
-                if key in spec:
-                    if not isinstance(spec[key], str) or not spec[key]:
-                        raise GdfeError(f"{where} {key}: expected the path of a mask image, got {describe(spec[key])}")
-                    files[key] = base / spec[key]
-            thick = {k: _entry(f"{where} {k}", spec[k], check_length) for k in ("d_top", "d_bottom") if k in spec}
-            des = from_masks(files["top"], files["bottom"], _entry(f"{where} pixel", spec["pixel"], check_length), R,
-                             h=h, nz=nz, isotropy=iso, film=files.get("film"), d=d, model=model, process=proc, **thick)
-    except GdfeError as exc:
-        if str(exc).startswith(name):
-            raise
-        first = re.split(r"[:=\s]", str(exc), maxsplit=1)[0]  # the key the message starts with
-        section = "film" if first in DESIGN_KEYS["film"] else kind if first in DESIGN_KEYS[kind] else None
-        raise type(exc)(f"{name}: [{section}] {exc}" if section else f"{name}: {exc}") from None
-    des.meta.setdefault("source", str(path))
-    des.meta.setdefault("nz", nz)
+
+def _simulate_options(name, doc):
+    """The design file's ``[simulate]`` table, checked."""
     options = dict(doc.get("simulate", {}))
     where = f"{name}: [simulate]"
     for key, check in (("steps", check_int), ("max_iter", check_int)):
@@ -726,7 +965,38 @@ def load_design(path, model=None, process=None):
             check_choice(f"{where} {key}", options[key], choices)
     if "method" in options and not isinstance(options["method"], str):  # its name: checked by gdfe.simulate
         raise GdfeTypeError(f"{where} method: expected the name of a method, got {describe(options['method'])}")
-    return des, options
+    return options
+
+
+def _read_hinge(src):
+    spec, where, f = src.table, src.where, src.film
+    extra = {k: _entry(f"{where} {k}", spec[k], check_length) for k in ("width", "panel_length", "cell_size")
+             if k in spec}
+    if "face" in spec:
+        extra["face"] = check_choice(f"{where} face", spec["face"], ("top", "bottom"))
+    return hinge(_entry(f"{where} length", spec["length"], check_length), d=f.d, R=f.R, h=f.h, nz=f.nz,
+                 isotropy=f.isotropy, model=f.model, process=f.process, **extra)
+
+
+def _read_layout(src):
+    spec, where, f = src.table, src.where, src.film
+    pixel = spec["pixel"]
+    pixel = (_entry(f"{where} pixel", pixel, check_length) if not isinstance(pixel, list) else
+             _pair(f"{where} pixel", pixel))
+    rows = spec["rows"]
+    if not isinstance(rows, list) or not rows or not all(isinstance(r, str) and r for r in rows):
+        raise GdfeError(f"{where} rows: expected a list of strings of R T B S . (first row on top), "
+                        f"got {describe(rows)}")
+    return from_rows(rows, f.R, h=f.h, pixel=pixel, nz=f.nz, isotropy=f.isotropy, d=f.d, model=f.model,
+                     process=f.process)
+
+
+def _read_masks(src):
+    spec, where = src.table, src.where
+    files = {key: src.file(key, "mask image") for key in ("top", "bottom", "film") if key in spec}
+    thick = {k: _entry(f"{where} {k}", spec[k], check_length) for k in ("d_top", "d_bottom") if k in spec}
+    return src.masks_design(files["top"], files["bottom"], _entry(f"{where} pixel", spec["pixel"], check_length),
+                            film=files.get("film"), **thick)
 
 
 #: Keys a design file's sections must have.
@@ -761,3 +1031,10 @@ def _pair(where, value):
     if len(value) != 2:
         raise GdfeError(f"{where}: expected a length or a pair [dx, dy] in mm, got {describe(value)}")
     return tuple(_entry(f"{where}[{k}]", v, check_length) for k, v in enumerate(value))
+
+
+register_design_reader("hinge", _read_hinge, keys=("length", "width", "panel_length", "cell_size", "face"),
+                       required=("length",))
+register_design_reader("layout", _read_layout, keys=("pixel", "rows"), required=("pixel", "rows"))
+register_design_reader("masks", _read_masks, keys=("pixel", "top", "bottom", "film", "d_top", "d_bottom"),
+                       required=("pixel", "top", "bottom"))

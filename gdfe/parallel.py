@@ -11,12 +11,14 @@ deterministic and runs whole on one worker.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
+import signal
 
 from gdfe._validation import GdfeError, check_int
 
-__all__ = ["parallel_map", "scheduler_address", "SCHEDULER_ENV"]
+__all__ = ["parallel_map", "scheduler_address", "SCHEDULER_ENV", "stop_workers", "stopping_workers", "Stopped"]
 
 log = logging.getLogger(__name__)
 
@@ -119,10 +121,14 @@ def _dask_map(func, items, scheduler, desc, progress):
         except ModuleNotFoundError:
             tqdm = None
         bar = tqdm(total=len(items), desc=desc, disable=not progress) if tqdm else None
-        for fut in as_completed(futures):
-            out[index[fut.key]] = fut.result()  # a task's own exception is raised here, with its traceback
-            if bar:
-                bar.update()
+        try:
+            for fut in as_completed(futures):
+                out[index[fut.key]] = fut.result()  # a task's own exception is raised here, with its traceback
+                if bar:
+                    bar.update()
+        except KeyboardInterrupt:  # Ctrl-C or SIGTERM (Stopped): the cluster's workers drop our tasks too
+            client.cancel(futures)
+            raise
         if bar:
             bar.close()
         log.info("%s: %d tasks on the Dask scheduler %s", desc or "parallel_map", len(items), client.scheduler.address)
@@ -130,3 +136,127 @@ def _dask_map(func, items, scheduler, desc, progress):
     finally:
         if own:
             client.close()
+
+
+# -- stopping: a signal stops the worker processes too ---------------------------------------------
+class Stopped(KeyboardInterrupt):
+    """A command stopped by a signal (Ctrl-C's SIGINT, or SIGTERM from ``kill`` or ``timeout``).
+
+    A :class:`KeyboardInterrupt`, so that every ``finally`` and every output folder's clean-up
+    runs as for Ctrl-C; ``signum`` is the signal.
+    """
+
+    def __init__(self, signum):
+        super().__init__(f"stopped by {signal.Signals(signum).name}")
+        self.signum = int(signum)
+
+
+def _descendants(pid):
+    """The processes below ``pid`` (children first), from psutil or Linux's /proc."""
+    try:
+        import psutil
+    except ModuleNotFoundError:
+        psutil = None
+    if psutil is not None:
+        try:
+            return [p.pid for p in psutil.Process(pid).children(recursive=True)]
+        except psutil.Error:
+            return []
+    out, todo = [], [pid]
+    while todo:
+        p = todo.pop()
+        try:
+            tasks = os.listdir(f"/proc/{p}/task")
+        except OSError:
+            continue
+        for t in tasks:
+            try:
+                with open(f"/proc/{p}/task/{t}/children") as f:
+                    kids = [int(x) for x in f.read().split()]
+            except OSError:
+                continue
+            out += kids
+            todo += kids
+    return out
+
+
+def stop_workers(grace=2.0):
+    """Terminate every process this one started (local workers, a benchmark's child process, theirs).
+
+    SIGTERM first; those still running after ``grace`` seconds get SIGKILL. Returns the process ids
+    that were stopped.
+    """
+    import time
+
+    pids = [p for p in _descendants(os.getpid()) if p != _resource_tracker()]
+    for pid in pids:
+        with contextlib.suppress(OSError):
+            os.kill(pid, signal.SIGTERM)
+    end = time.monotonic() + grace
+    alive = list(pids)
+    while alive and time.monotonic() < end:
+        alive = [p for p in alive if _running(p)]
+        if alive:
+            time.sleep(0.02)
+    for pid in alive:
+        with contextlib.suppress(OSError):
+            os.kill(pid, signal.SIGKILL)
+    if pids:
+        log.info("stopped %d worker process(es)", len(pids))
+    return pids
+
+
+def _resource_tracker():
+    """The process id of multiprocessing's resource tracker, which must outlive the workers (it frees
+    their semaphores, and ends by itself with this process); None when there is none."""
+    import sys
+
+    tracker = sys.modules.get("multiprocessing.resource_tracker")
+    return getattr(getattr(tracker, "_resource_tracker", None), "_pid", None)
+
+
+def _running(pid):
+    """Whether ``pid`` still runs (reaped here when it is our child and has ended)."""
+    try:
+        done, _ = os.waitpid(pid, os.WNOHANG)
+        if done == pid:
+            return False
+    except ChildProcessError:  # not our child: ask whether it exists
+        pass
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split(")")[-1].split()[0] != "Z"
+    except OSError:
+        try:
+            os.kill(pid, 0)
+        except OSError:
+            return False
+        return True
+
+
+@contextlib.contextmanager
+def stopping_workers(signals=(signal.SIGINT, signal.SIGTERM)):
+    """While in the block, a signal stops every worker process and raises :class:`Stopped` here.
+
+    Without it a SIGTERM ends this process alone and leaves its workers running, orphaned (a
+    benchmark's child holding gigabytes); Ctrl-C's SIGINT reaches the workers of a terminal's
+    process group but not those of a pool that ignores it. Outside the main thread it does nothing.
+    """
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum, frame):
+        for sig in signals:  # a second signal while stopping is not a second interruption
+            signal.signal(sig, signal.SIG_IGN)
+        stop_workers()
+        raise Stopped(signum)
+
+    old = {sig: signal.signal(sig, stop) for sig in signals}
+    try:
+        yield
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)

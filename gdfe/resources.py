@@ -35,7 +35,9 @@ import os
 from gdfe._validation import GdfeError
 
 __all__ = ["Estimate", "estimate_run", "estimate_design", "machine_memory", "check_design_cells", "check_run",
-           "format_bytes", "format_seconds", "LARGE_SECONDS", "LARGE_MEMORY_FRACTION", "CALIBRATION"]
+           "check_grid", "check_work", "thin_factor", "format_bytes", "format_seconds", "LARGE_SECONDS",
+           "LARGE_MEMORY_FRACTION",
+           "PROGRESS_SECONDS", "CALIBRATION"]
 
 #: Bytes per cell of a design's mesh and cell data (points, hexahedra, indices, materials).
 MESH_BYTES_PER_CELL = 600
@@ -68,6 +70,8 @@ CALIBRATION = "fitted to gdfe bench on 2 cores (docs/bench), good to a factor of
 #: is *large*: the command line asks for ``--large`` before it starts one.
 LARGE_SECONDS = 600.0
 LARGE_MEMORY_FRACTION = 0.5
+#: Work estimated to take longer than this says so before it starts, and shows its progress.
+PROGRESS_SECONDS = 10.0
 
 
 def machine_memory():
@@ -104,7 +108,10 @@ def _frame_seconds(cells):
     t, n_from = t0, n0
     for n_to, exponent in TIME_EXPONENTS:
         if cells <= n_to:
-            return t * (cells / n_from) ** exponent + FRAME_OVERHEAD_SECONDS
+            try:
+                return t * (float(cells) / n_from) ** exponent + FRAME_OVERHEAD_SECONDS
+            except OverflowError:  # more cells than any machine holds: refused on its memory
+                return float("inf")
         t *= (n_to / n_from) ** exponent
         n_from = n_to
     return t  # pragma: no cover
@@ -158,7 +165,23 @@ class Estimate:
                 "seconds": float(self.seconds), "machine_bytes": self.machine_bytes}
 
 
-def estimate_run(cells, frames=1, points=None) -> Estimate:
+#: Thin cells converge slowly: the time of a frame grows as ``(aspect / THIN_ASPECT) ** THIN_EXPONENT``
+#: for cells more than :data:`THIN_ASPECT` times as wide as they are thick, measured on the paper's
+#: 1 mm hinge (``gdfe hinge -L 1 --d 0.33 --nz N``, 2 cores): nz = 16 (aspect 3.4) 1.4 s, nz = 64
+#: (aspect 13.8) 32 s, 6.6 times the estimate without it; nz = 200 (aspect 43) had not converged after
+#: 400 s. The benchmark's sheets, one layer of cells thicker than wide, set the base time.
+THIN_ASPECT, THIN_EXPONENT = 2.3, 1.06
+
+
+def thin_factor(spacing) -> float:
+    """How many times longer a frame takes for cells of ``spacing`` ``(dx, dy, dz)`` [mm] (1 for cells no
+    flatter than :data:`THIN_ASPECT`)."""
+    dx, dy, dz = (float(v) for v in spacing)
+    aspect = max(dx, dy) / dz if dz > 0 else 1.0
+    return max(1.0, aspect / THIN_ASPECT) ** THIN_EXPONENT
+
+
+def estimate_run(cells, frames=1, points=None, spacing=None) -> Estimate:
     """The estimated memory and time of simulating ``cells`` cells over ``frames`` frames.
 
     Parameters
@@ -168,12 +191,22 @@ def estimate_run(cells, frames=1, points=None) -> Estimate:
         The ramp's ``steps``; every frame is kept (``points`` x 3 floats each).
     points : int, optional
         Vertices of the design (default: about 2 per cell, a one-layer sheet).
+    spacing : (3,) float [mm], optional
+        The cells' size (dx, dy, dz): thin cells (many layers, ``nz``) converge slowly
+        (:func:`thin_factor`).
     """
+    import math
+
+    if not (isinstance(cells, (int, float)) or hasattr(cells, "__index__")) or not math.isfinite(float(cells)) \
+            or float(cells) < 1 or float(frames) < 1:
+        raise GdfeError(f"cells, frames: expected at least one cell and one frame, got {cells!r} cells and "
+                        f"{frames!r} frames")
     cells, frames = int(cells), int(frames)
     points = 2 * cells if points is None else int(points)
-    memory = BASE_BYTES + SOLVE_BYTES_PER_CELL * cells + (frames + 1) * points * 3 * 8
+    memory = BASE_BYTES + SOLVE_BYTES_PER_CELL * float(cells) + (frames + 1) * float(points) * 3 * 8
     return Estimate(cells=cells, frames=frames, memory_bytes=float(memory),
-                    seconds=frames * _frame_seconds(cells), machine_bytes=machine_memory())
+                    seconds=frames * _frame_seconds(cells) * (1.0 if spacing is None else thin_factor(spacing)),
+                    machine_bytes=machine_memory())
 
 
 def estimate_design(cells, iterations, points=None) -> Estimate:
@@ -222,8 +255,75 @@ def check_run(design, steps):
     -------
     Estimate
     """
-    est = estimate_run(design.n_cells, steps, design.mesh.n_points)
+    est = estimate_run(design.n_cells, steps, design.mesh.n_points, design.mesh.spacing)
     if not est.fits:
         raise GdfeError(f"design, steps: expected a simulation that fits in memory, got {est.text()}; "
                         f"use a coarser design or fewer steps")
     return est
+
+
+def check_work(name, memory_bytes, what, remedy, seconds=None, logger=None):
+    """The one guard in front of work whose size the input decides (a grid, a file, a sweep).
+
+    Refuses work whose memory estimate exceeds the machine's, before any of it is allocated, with the
+    estimate and what to change; says the estimate (a log line) of work that will take longer than
+    :data:`PROGRESS_SECONDS`.
+
+    Parameters
+    ----------
+    name : str
+        The argument, option, key or file whose value set the size: the message's first word.
+    memory_bytes : float
+        The estimated peak memory.
+    what : str
+        The work in words, with its size (``"a grid of 2e+10 pixels"``).
+    remedy : str
+        What the user can change (``"use a larger pixel"``, ``"pass --large"``).
+    seconds : float, optional
+        The estimated time.
+    logger : logging.Logger, optional
+        Where the estimate of long work is said (default this module's).
+
+    Returns
+    -------
+    float
+        ``memory_bytes``.
+    """
+    import logging
+    import math
+
+    machine = machine_memory()
+    need = float(memory_bytes)
+    if not math.isfinite(need) or (machine is not None and need > machine):
+        have = "" if machine is None else f" (this machine has {format_bytes(machine)})"
+        size = format_bytes(need) if math.isfinite(need) else "more memory than any machine has"
+        raise GdfeError(f"{name}: expected work that fits in memory, got {what}, which needs about {size}{have}; "
+                        f"{remedy}")
+    if seconds is not None and seconds > PROGRESS_SECONDS:
+        memory = f" and {format_bytes(need)} of memory" if need > 0 else ""
+        (logger or logging.getLogger(__name__)).warning("%s: %s: about %s%s", name, what, format_seconds(seconds),
+                                                        memory)
+    return need
+
+
+def check_grid(name, cells, size_mm, pixel, bytes_per_cell=0):
+    """Refuse a drawing's grid of ``cells`` pixels whose design (and the arrays that make it) would not fit.
+
+    Parameters
+    ----------
+    name : str
+        What set the pixel (``"pixel"``, ``"crane.fold: pixel"``).
+    cells : float
+        Pixels of the grid (a float: it may be far beyond any integer array).
+    size_mm : (2,) float
+        The drawing's extent [mm], for the message.
+    pixel : float [mm]
+    bytes_per_cell : float
+        Bytes per pixel of making the grid, beside the design's mesh (:data:`MESH_BYTES_PER_CELL`).
+    """
+    w, h = (float(v) for v in size_mm)
+    check_work(name, float(cells) * (MESH_BYTES_PER_CELL + bytes_per_cell),
+               f"a drawing of {w:.4g} x {h:.4g} mm at {pixel:g} mm pixels ({float(cells):.3g} cells)",
+               "use a larger pixel, or check the drawing's unit (a drawing in metres read as millimetres is "
+               "10^6 times as many pixels)")
+    return float(cells)

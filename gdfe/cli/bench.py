@@ -8,14 +8,20 @@ from gdfe.cli._common import emit, json_arg, noting, out_arg, output_folder
 __all__ = ["register", "run"]
 
 
+#: The fewest cells of a benchmark sheet (a 2 x 2 sheet), and the most any machine could hold
+#: (:func:`gdfe.resources.check_work` refuses what this one cannot).
+MIN_CELLS, MAX_CELLS = 4, 10**12
+
+
 def _sizes(text):
+    """Cell counts, as numbers (written as integers or as 1e5); checked by :func:`_check_sizes`."""
     import argparse
 
     try:
-        sizes = [int(float(x)) for x in text.split(",")]
-    except (ValueError, OverflowError):
-        raise argparse.ArgumentTypeError(f"expected cell counts separated by commas (e.g. 1e3,1e4), got {text!r}") from None
-    return sizes  # counts below 4 are refused by studies.bench.run
+        return [float(x) for x in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected cell counts separated by commas (e.g. 1e3,1e4), got "
+                                         f"{text!r}") from None
 
 
 def _sizes_or_none(text):
@@ -41,16 +47,29 @@ def register(subparsers):
 
 
 def _check_sizes(args):
-    """Every sheet size fits the machine, and a large one is asked for with --large (estimates printed)."""
+    """Every sheet size a whole count that fits the machine, and a large one asked for with --large
+    (estimates printed); ``args.sizes`` and ``args.freeform_sizes`` become integers."""
+    import math
+
     from gdfe._validation import GdfeError
     from gdfe.resources import estimate_run
 
-    for n in list(args.sizes or []) + list(args.freeform_sizes or []):
-        est = estimate_run(n)
-        if not est.fits:
-            raise GdfeError(f"--sizes: a sheet of {n:,} cells would not fit in memory: {est.text()}")
-        if est.large and not args.large:
-            raise GdfeError(f"--sizes: a sheet of {n:,} cells is a large run: {est.text()}; pass --large to run it")
+    for option, dest in (("--sizes", "sizes"), ("--freeform-sizes", "freeform_sizes")):
+        sizes = getattr(args, dest)
+        for v in sizes or []:
+            if not math.isfinite(v) or v != int(v) or not MIN_CELLS <= v <= MAX_CELLS:
+                raise GdfeError(f"{option}: expected whole cell counts from {MIN_CELLS} to {MAX_CELLS:.0e}, got "
+                                f"{v:g}")
+        if sizes is not None:
+            setattr(args, dest, [int(v) for v in sizes])
+        for n in getattr(args, dest) or []:
+            est = estimate_run(n)
+            if not est.fits:
+                raise GdfeError(f"{option}: a sheet of {n:,} cells would not fit in memory: {est.text()}; "
+                                f"give smaller sizes")
+            if est.large and not args.large:
+                raise GdfeError(f"{option}: a sheet of {n:,} cells is a large run: {est.text()}; pass --large to "
+                                f"run it")
 
 
 def run(args):

@@ -4,11 +4,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gdfe._validation import GdfeError, check_positive
+import logging
+
+from gdfe._validation import GdfeError, check_positive, degenerate_tests
 from gdfe.calibration import MAX_BOOT, MIN_BOOT, READINGS, check_boot, held_out_rmse
 from gdfe.cli._common import emit, file_path, json_arg, new_toml_path
 
 __all__ = ["register", "run"]
+
+log = logging.getLogger("gdfe.cli.calibrate")
 
 
 def register(sub):
@@ -34,11 +38,15 @@ def run(args):
     check_boot("--boot", args.boot)
     if args.model_out is not None and args.model == "all":
         raise GdfeError("--model-out: expected one --model (eq1, eq1-d1 or power), got all")
+    models = READINGS if args.model == "all" else (args.model,)
+    _announce(args.data, args.boot, len(models))
     tests = gdfe.load_folding_tests(args.data)
+    for note in degenerate_tests(args.data.name, tests.L, tests.d, tests.h, tests.alpha,
+                                 same_angles=False):  # the fit's text says when every angle is the same
+        log.warning("%s", note)
     if args.d is not None:
         check_positive("--d", args.d)
         h = float(tests.h.mean())
-    models = READINGS if args.model == "all" else (args.model,)
     out = []
     text = []
     for m in models:
@@ -66,3 +74,22 @@ def run(args):
         text.append(block)
     emit(out[0] if len(out) == 1 else out, args.json, "\n\n".join(text), command="calibrate")
     return 0
+
+
+#: Seconds per row of reading a CSV of folding tests, and per row and bootstrap resample of a fit
+#: (``gdfe calibrate`` of 10^6 rows on 2 cores: read 7.8 s, 2 000 resamples 68 s).
+READ_SECONDS_PER_ROW, BOOT_SECONDS_PER_ROW = 7.8e-6, 3.4e-8
+
+
+def _announce(path, boot, n_models):
+    """Say the estimate of a long calibration (a CSV of many rows, many resamples) before it starts."""
+    from gdfe.resources import check_work
+
+    try:
+        with open(path, "rb") as f:
+            rows = sum(chunk.count(b"\n") for chunk in iter(lambda: f.read(1 << 20), b""))
+    except OSError:
+        return  # load_folding_tests names the file
+    seconds = rows * (READ_SECONDS_PER_ROW + n_models * BOOT_SECONDS_PER_ROW * max(boot, 1))
+    check_work(path.name, 0.0, f"{rows:,} rows x {boot} bootstrap resamples x {n_models} reading(s)", "",
+               seconds=seconds, logger=log)

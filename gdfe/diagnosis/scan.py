@@ -54,7 +54,7 @@ def load_measured(path, *, name="path"):
     path = check_file(name, path, suffixes=MEASURED_SUFFIXES, what="measured shape")
     suffix = path.suffix.lower()
     if suffix == ".csv":
-        return _read_csv(path), None
+        return _guarded(path, _read_csv(path)), None
     mesh = _read_mesh(path)
     pts = np.asarray(mesh.points, float)
     if pts.ndim != 2 or pts.shape[0] == 0:
@@ -66,7 +66,29 @@ def load_measured(path, *, name="path"):
     if pts.shape[1] == 2:
         pts = np.column_stack([pts, np.zeros(len(pts))])
     hexes = [c.data for c in mesh.cells if c.type == "hexahedron"]
-    return check_points(path.name, pts[:, :3], min_size=1), (np.concatenate(hexes) if hexes else None)
+    return (_guarded(path, check_points(path.name, pts[:, :3], min_size=1)),
+            np.concatenate(hexes) if hexes else None)
+
+
+#: The cost of a shape diagnosis per scanned point, for the guard after a scan is read: peak memory
+#: over a base, and seconds at 2·10^4 points growing as a power of the count (``gdfe diagnose-shape``
+#: of a 1 200-cell drawing, 2 cores: 2·10^4 points 29 s and 286 MB, 6·10^4 points 105 s and 664 MB).
+SCAN_BASE_BYTES, SCAN_BYTES_PER_POINT = 100 * 2**20, 9_500
+SCAN_SECONDS_AT, SCAN_TIME_EXPONENT = (2e4, 29.0), 1.17
+
+
+def _guarded(path, points):
+    """The scan's points, after the guard: refused when diagnosing them would not fit in memory, the
+    estimate said when it takes long."""
+    from gdfe.resources import check_work, machine_memory
+
+    n = len(points)
+    n0, t0 = SCAN_SECONDS_AT
+    need = SCAN_BASE_BYTES + SCAN_BYTES_PER_POINT * float(n)
+    every = max(2, int(np.ceil(2 * need / (machine_memory() or need))))  # to half the machine's memory
+    check_work(path.name, need, f"a scan of {n:,} points", f"subsample the scan (keep every {every}th point, "
+               f"for instance)", seconds=t0 * (n / n0) ** SCAN_TIME_EXPONENT, logger=log)
+    return points
 
 
 def check_points(name, points, min_size=4):

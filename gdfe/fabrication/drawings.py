@@ -1,10 +1,11 @@
 """Drawings as designs: an SVG drawing or a FOLD crease pattern, with a film, on the printer's grid.
 
-The film's parameters (h, R or d, a deformation model) are not decided here: every function
-takes ``make(top, bottom, pixel, film) -> Design``, the caller's way of turning face masks
-into a design (:func:`gdfe.load_design` passes :func:`gdfe.from_masks` with the design
-file's ``[film]``). So this module imports nothing of :mod:`gdfe.design`, which dispatches
-``.svg`` and ``.fold`` files and ``[svg]``/``[fold]`` tables to it.
+The film's parameters (h, R or d, a deformation model, the process variables) are not decided
+here: every function takes ``make(top, bottom, pixel, film) -> Design``, the caller's way of
+turning face masks into a design. The readers of ``[svg]`` and ``[fold]`` tables and of ``.svg``
+and ``.fold`` files alone register with :func:`gdfe.design.register_design_reader`, so that
+:func:`gdfe.load_design` hands them the same :class:`gdfe.design.DesignSource` as every other
+source (its :meth:`~gdfe.design.DesignSource.masks_design` is their ``make``).
 
 All lengths in millimetres.
 """
@@ -16,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from gdfe._validation import GdfeError, check_keys, check_positive
+from gdfe.design import register_design_reader
 from gdfe.fabrication.fold import fold_masks, read_fold
 from gdfe.fabrication.svg import svg_masks
 
@@ -40,7 +42,7 @@ def svg_design_with(make, path, pixel, by="layer", colours=None):
     return des
 
 
-def fold_design_with(make, path, pixel=None, hinge_width=None, scale=None):
+def fold_design_with(make, path, pixel=None, hinge_width=None, scale=None, scale_name="scale"):
     """The design of a FOLD crease pattern (:func:`gdfe.fabrication.fold_masks`), its film by ``make``.
 
     The contraction ratio and thickness that turn fold angles into hinge widths (Eq. 2) are
@@ -48,7 +50,7 @@ def fold_design_with(make, path, pixel=None, hinge_width=None, scale=None):
     crease of edge E, ``face_K`` for the panel of face K, ``panels`` for all of them;
     ``meta["hinges"]`` lists the creases.
     """
-    cp = read_fold(path, scale=scale)
+    cp = read_fold(path, scale=scale, scale_name=scale_name)
     pixel = check_positive("pixel", pixel if pixel is not None else cp.keys.get("gdfe:pixel", 0.1))
     probe = make(np.array([[False]]), np.array([[True]]), pixel, None)  # one hinge cell: its R and h
     fm = fold_masks(cp, pixel, float(probe.R[0]), float(probe.h), hinge_width=hinge_width)
@@ -87,7 +89,7 @@ def drawing_design(kind, spec, toml_path, make):
     if not isinstance(spec, dict):
         raise GdfeError(f"{name}: [{kind}]: expected a table")
     check_keys(f"{name}: [{kind}]", spec, DRAWING_KEYS[kind])
-    if not isinstance(spec.get("file"), str):
+    if not isinstance(spec.get("file"), str) or not spec.get("file"):
         raise GdfeError(f"{name}: [{kind}] file: expected the path of the drawing, got {spec.get('file')!r}")
     src = toml_path.parent / spec["file"]
     try:
@@ -96,27 +98,58 @@ def drawing_design(kind, spec, toml_path, make):
                 raise GdfeError("[svg] is missing 'pixel'")
             return svg_design_with(make, src, spec["pixel"], by=spec.get("by", "layer"))
         return fold_design_with(make, src, pixel=spec.get("pixel"), hinge_width=spec.get("hinge_width"),
-                                scale=spec.get("scale"))
+                                scale=spec.get("scale"), scale_name="[fold] scale")
     except GdfeError as exc:
         raise type(exc)(f"{name}: {exc}") from None
 
 
-def load_drawing(path, from_masks, model=None):
+def _make(source):
+    """``make(top, bottom, pixel, film)`` of a design source: its film, model and process variables."""
+    def make(top, bottom, pixel, film):
+        return source.masks_design(top, bottom, pixel, film=film)
+    return make
+
+
+def _read_table(source):
+    return drawing_design(source.kind, source.table, source.path, _make(source))
+
+
+def _read_svg(source):
+    if source.table is not None:
+        return _read_table(source)
+    return svg_design_with(_make(source), source.path, DEFAULT_PIXEL)
+
+
+def _read_fold(source):
+    if source.table is not None:
+        return _read_table(source)
+    return fold_design_with(_make(source), source.path, scale_name=None)
+
+
+#: The pixel of an SVG drawing read alone [mm] (a design file's ``[svg]`` gives its own).
+DEFAULT_PIXEL = 0.1
+
+
+def load_drawing(path, from_masks=None, model=None, process=None):
     """A design from an SVG drawing or a FOLD file alone, with the paper's film.
 
-    The film is the paper's (h = 0.29 mm, d = 0.33 mm, R by Eq. 3, or by ``model`` from
-    that d), one cell through its thickness; SVG drawings are rasterised at 0.1 mm, FOLD
-    files at their ``gdfe:pixel`` (else 0.1 mm). A design file (TOML) with an ``[svg]`` or
-    ``[fold]`` table gives every choice instead.
+    The film is the paper's (:func:`gdfe.design.paper_film`: h = 0.29 mm, d = 0.33 mm, R by
+    Eq. 3, or by ``model`` from that d), one cell through its thickness; SVG drawings are
+    rasterised at 0.1 mm, FOLD files at their ``gdfe:pixel`` (else 0.1 mm). A design file
+    (TOML) with an ``[svg]`` or ``[fold]`` table gives every choice instead. The same as
+    :func:`gdfe.load_design` of the file.
 
     Parameters
     ----------
     path : str or Path
         The ``.svg`` or ``.fold`` file.
-    from_masks : callable
-        :func:`gdfe.from_masks`.
+    from_masks : callable, optional
+        Not used (kept for the callers of an earlier release): the film is applied by the
+        registered reader.
     model : DeformationModel or path of a model file, optional
         A deformation model in place of Eq. 3.
+    process : dict, optional
+        The part's process variables, for the model's process mechanisms.
 
     Returns
     -------
@@ -124,21 +157,13 @@ def load_drawing(path, from_masks, model=None):
     options : dict
         Empty (no ``[simulate]`` options).
     """
-    from gdfe.fabrication._film import film_ratio
+    from gdfe.design import load_design
 
     path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix not in DRAWING_SUFFIXES:
+    if path.suffix.lower() not in DRAWING_SUFFIXES:
         raise GdfeError(f"drawing: expected a {' or '.join(DRAWING_SUFFIXES)} file, got {path.name!r}")
-    h, R, d = film_ratio()
+    return load_design(path, model=model, process=process)
 
-    def make(top, bottom, pixel, film):
-        if model is None:
-            des = from_masks(top, bottom, pixel, R, h=h, nz=1, film=film)
-        else:
-            des = from_masks(top, bottom, pixel, h=h, nz=1, film=film, d=d, model=model)
-        des.meta["d_mm"] = d
-        return des
 
-    des = svg_design_with(make, path, 0.1) if suffix == ".svg" else fold_design_with(make, path)
-    return des, {}
+register_design_reader("svg", _read_svg, keys=DRAWING_KEYS["svg"], required=("file", "pixel"), suffixes=(".svg",))
+register_design_reader("fold", _read_fold, keys=DRAWING_KEYS["fold"], required=("file",), suffixes=(".fold",))

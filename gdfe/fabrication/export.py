@@ -109,7 +109,7 @@ def write_obj(path, surface):
 
 def write_fold_frames(path, result):
     """A FOLD file of a result's surface: frame 0 the flat print, the contraction ramp in ``file_frames``."""
-    from gdfe import __version__
+    from gdfe._version import __version__
     from gdfe.design import Material
     from gdfe.io import json_default, write_text
 

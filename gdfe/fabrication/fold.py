@@ -41,7 +41,8 @@ import math
 
 import numpy as np
 
-from gdfe._validation import GdfeError, check_file, check_positive, is_finite_number, read_text
+from gdfe._validation import GdfeError, check_file, check_positive, describe, is_finite_number, read_text
+from gdfe.resources import check_grid
 
 __all__ = ["CreasePattern", "FoldMasks", "read_fold", "fold_masks", "UNITS_MM", "ASSIGNMENTS"]
 
@@ -142,7 +143,7 @@ def _number(v, where):
     return float(v)
 
 
-def read_fold(path, scale=None):
+def read_fold(path, scale=None, scale_name="scale"):
     """Read a flat crease pattern from a FOLD file.
 
     Parameters
@@ -151,6 +152,9 @@ def read_fold(path, scale=None):
         The ``.fold`` file.
     scale : float [mm per unit], optional
         For a unit-less file (overrides ``gdfe:scale``).
+    scale_name : str or None
+        What gives ``scale`` where the caller reads it (an option, a key), for the message asking
+        for it; None where there is no such way (only the file's ``gdfe:scale``).
 
     Returns
     -------
@@ -172,9 +176,11 @@ def read_fold(path, scale=None):
     elif unit == "unit":
         s = scale if scale is not None else doc.get("gdfe:scale")
         if s is None:
+            how = "the file's 'gdfe:scale' key" + (f", or {scale_name}" if scale_name else "")
             raise GdfeError(f"{name}: frame_unit is 'unit' (no length unit): give the scale in mm per unit "
-                            "(the 'gdfe:scale' key, or --scale)")
-        mm = _number(s, f"{name}: gdfe:scale") if scale is None else float(check_positive("scale", scale))
+                            f"({how}), or a frame_unit of {', '.join(UNITS_MM)}")
+        mm = _number(s, f"{name}: gdfe:scale") if scale is None else float(check_positive(scale_name or "scale",
+                                                                                          scale))
         if mm <= 0:
             raise GdfeError(f"{name}: gdfe:scale: expected a positive number of mm per unit, got {mm:g}")
     else:
@@ -199,6 +205,9 @@ def read_fold(path, scale=None):
             raise GdfeError(f"{name}: edges_vertices[{k}]: expected two different vertices in 0..{len(V) - 1}, "
                             f"got {e!r}")
         E[k] = e
+        if np.array_equal(V[e[0]], V[e[1]]):
+            raise GdfeError(f"{name}: edges_vertices[{k}]: an edge of zero length (vertices {e[0]} and {e[1]} are "
+                            f"both at {describe(V[e[0]].tolist())}); expected two vertices at different points")
     ne = len(E)
     ea = _list(doc, "edges_assignment", name, ne, required=False) or ["U"] * ne
     for k, a in enumerate(ea):
@@ -285,6 +294,11 @@ def _boundary_loops(cp):
     return loops
 
 
+#: Bytes per pixel of :func:`fold_masks`: the film, face and hinge masks, the pixels' centres, the
+#: nearest crease's distance and owner, and one crease's band at a time (about ten 8-byte arrays).
+FOLD_BYTES_PER_PIXEL = 80
+
+
 def fold_masks(cp, pixel, R, h, hinge_width=None):
     """The printer masks of a crease pattern at a pixel size.
 
@@ -308,7 +322,11 @@ def fold_masks(cp, pixel, R, h, hinge_width=None):
     pixel = check_positive("pixel", pixel)
     V = cp.vertices
     lo, hi = V.min(0), V.max(0)
-    nx, ny = (max(1, int(math.ceil((hi[k] - lo[k]) / pixel - 1e-9))) for k in (0, 1))
+    n = [(hi[k] - lo[k]) / pixel for k in (0, 1)]
+    # before any grid is made: the film's size on the printer's grid (a file in metres read as
+    # millimetres, or a pixel far too small, would ask for tens of GiB)
+    check_grid(f"{cp.name}: pixel", n[0] * n[1], (hi - lo).tolist(), pixel, FOLD_BYTES_PER_PIXEL)
+    nx, ny = (max(1, int(math.ceil(n[k] - 1e-9))) for k in (0, 1))
     polys = [(V[f] - lo) / pixel for f in cp.faces] if cp.faces else [(V[p] - lo) / pixel for p in _boundary_loops(cp)]
     if cp.faces:
         film = np.zeros((ny, nx), bool)

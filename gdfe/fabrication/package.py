@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from gdfe._validation import GdfeError, check_file
+from gdfe.design import register_design_reader
 from gdfe.fabrication.masks import _png_bytes, face_masks
 
 __all__ = ["write_print_package", "read_print_package", "PACKAGE_FORMAT"]
@@ -100,7 +101,7 @@ def write_print_package(path, designs, *, d=None, K=None, source=None, extra=Non
     -------
     Path
     """
-    from gdfe import __version__
+    from gdfe._version import __version__
     from gdfe.fabrication.masks import design_toml_text
     from gdfe.io import atomic_path
 
@@ -190,7 +191,37 @@ def read_print_package(path):
                 return read_mask_image(path.name, io.BytesIO(zf.read(fl[key])), label=fl[key])[0]
 
             des = from_masks(img("top"), img("bottom"), info["pixel_mm"], R, h=film["h"], nz=film.get("nz", 1),
-                             isotropy=film.get("isotropy", 1.0), film=img("film") if "film" in fl else None)
+                             isotropy=film.get("isotropy", 1.0), film=img("film") if "film" in fl else None,
+                             d=film.get("d"))
             des.meta.update(kind="package", source=str(path), part=part.get("name"))
             designs[part["name"]] = des
     return designs, info
+
+
+def _read_package(source):
+    """The design of a print package read alone (:func:`gdfe.load_design`): its one part, with the
+    package's own film, or with the given model at the package's d."""
+    designs, info = read_print_package(source.path)
+    if len(designs) != 1:
+        raise GdfeError(f"{source.path.name}: expected a package of one part to read as a design, got "
+                        f"{len(designs)} parts ({', '.join(designs) or 'none'}); read it with "
+                        f"gdfe.fabrication.read_print_package")
+    des = next(iter(designs.values()))
+    f = source.film
+    if not f.default:  # a model given: it replaces the package's film
+        if des.d is None:
+            raise GdfeError(f"{source.path.name}: model: the package gives R, not the passive thickness d that "
+                            f"a deformation model needs")
+        des = f.model.apply(des, f.process)
+        des.meta["contraction_source"] = f"model {f.model.name!r}"
+    else:
+        des.meta["contraction_source"] = "the package's film"
+    if f.process:
+        from gdfe.design import process_used
+
+        des.meta["process"] = dict(f.process)
+        des.meta["process_used"] = process_used(f.model, f.process)
+    return des
+
+
+register_design_reader("package", _read_package, suffixes=(".zip",))

@@ -147,6 +147,12 @@ def _check_path_data(d, where):
     close_command()
 
 
+#: The attributes that place a shape: a NaN or infinite value in one is an error (svgelements reads it as 0).
+_GEOMETRY = ("x", "y", "width", "height", "cx", "cy", "r", "rx", "ry", "x1", "y1", "x2", "y2", "points", "d",
+             "transform", "viewBox")
+_NOT_FINITE = re.compile(r"(?i)(?<![a-z])(nan|inf(inity)?)(?![a-z])")
+
+
 def _face_of(el):
     for key in (_INKSCAPE_LABEL, "id"):
         v = (el.get(key) or "").strip().lower()
@@ -166,6 +172,11 @@ def _prepare(path, by):
         where = _describe(el, lines.get(id(el), "?"))
         if tag == "g" and by == "layer":
             face = _face_of(el) or face
+        for key in _GEOMETRY:
+            value = el.get(key)
+            if value is not None and _NOT_FINITE.search(value):
+                raise GdfeError(f"{path.name}: {where}: {key}={value!r}: expected finite numbers, got a value that "
+                                f"is not a number (NaN or infinite)")
         if tag == "path":
             _check_path_data(el.get("d", ""), f"{path.name}: {where}")
         if tag in ("text", "tspan", "flowRoot") and (el.text or "").strip():
@@ -233,6 +244,11 @@ def _page(root, svg, name):
     return W, H, W / float(svg.width)
 
 
+#: Bytes per pixel of :func:`svg_masks` besides the design: the page's face masks and one shape's
+#: raster at a time (a few boolean and integer arrays of the page's size).
+SVG_BYTES_PER_PIXEL = 40
+
+
 def svg_masks(path, pixel, by="layer", colours=None):
     """Rasterise an SVG drawing into the masks of the two faces and of the film.
 
@@ -291,17 +307,27 @@ def svg_masks(path, pixel, by="layer", colours=None):
         rule = str(el.values.get("fill-rule", "nonzero")).strip().lower()
         rule = rule if rule in ("nonzero", "evenodd") else "nonzero"
         sub = [P * mm for P in _subpaths(el, step)]
+        if any(not np.isfinite(P).all() for P in sub):
+            raise GdfeError(f"{path.name}: {where}: expected finite coordinates, got a shape whose points are not "
+                            f"numbers (NaN or infinite: check its x, y, width, height, points, d or transform)")
         if sub:
-            polys[face].append((sub, rule))
+            polys[face].append((sub, rule, where))
             counts[face] += 1
     from gdfe.fabrication.raster import fill_polygons
+    from gdfe.resources import check_grid
 
+    # before any grid is made: the page's size on the printer's grid
+    check_grid(f"{path.name}: pixel", (H / pixel) * (W / pixel), (W, H), pixel, SVG_BYTES_PER_PIXEL)
     rows, cols = int(math.ceil(H / pixel - 1e-6)), int(math.ceil(W / pixel - 1e-6))  # page sizes carry round-off
+    empty = []
 
     def raster(face):
         img = np.zeros((rows, cols), bool)
-        for sub, rule in polys[face]:
-            img |= fill_polygons([P / pixel for P in sub], (rows, cols), rule)
+        for sub, rule, where in polys[face]:
+            one = fill_polygons([P / pixel for P in sub], (rows, cols), rule)
+            if not one.any():
+                empty.append(where)
+            img |= one
         return img[::-1].T  # image rows run down from the page's top; the grid's j runs up
 
     film = raster("film") if polys["film"] else np.ones((cols, rows), bool)
@@ -312,6 +338,12 @@ def svg_masks(path, pixel, by="layer", colours=None):
     if not (top | bottom).any():
         raise GdfeError(f"{path.name}: no filled shape in a top, bottom or both group covers a pixel at "
                         f"{pixel:g} mm: nothing is coated")
+    if empty:
+        log.warning("%s: %d filled shape(s) cover no pixel at %g mm and are left out (%s%s)", path.name, len(empty),
+                    pixel, ", ".join(empty[:3]), ", ..." if len(empty) > 3 else "")
+    if not ((top | bottom) & film).any():
+        raise GdfeError(f"{path.name}: no coated pixel lies on the film (the film group covers none of the top, "
+                        f"bottom or both shapes at {pixel:g} mm): nothing on the film is coated")
     ii, jj = np.nonzero(film)
     sl = (slice(ii.min(), ii.max() + 1), slice(jj.min(), jj.max() + 1))
     outside = (top | bottom) & ~film

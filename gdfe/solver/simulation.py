@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from gdfe._validation import GdfeError, check_array, check_choice, check_instance, check_int, check_positive
-from gdfe.design import Design
+from gdfe.design import Design, check_one_piece
 from gdfe.model import as_model
 from gdfe.resources import check_run
 from gdfe.solver.contact import CONTACT_MODES, Contact, ContactReport, contact_available
@@ -328,6 +328,7 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
     """
     method = check_choice("method", method, METHODS)
     check_instance("design", design, Design)
+    check_one_piece(design)
     if model is not None:
         design = as_model(model).apply(design, process)
     contact = check_choice("contact", contact, CONTACT_MODES)

@@ -1,0 +1,84 @@
+"""Stopping a command: SIGTERM (``kill``, ``timeout``) and Ctrl-C stop its worker processes too, and
+leave no half-written output folder."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from gdfe.parallel import _descendants, _running, stop_workers, stopping_workers, Stopped
+
+
+def _alive(pids):
+    return [p for p in pids if _running(p)]
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_stops_the_benchmarks_worker_and_marks_its_folder(tmp_path, sig):
+    out = tmp_path / "bench"
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    proc = subprocess.Popen([sys.executable, "-m", "gdfe", "bench", "--sizes", "1e5", "--freeform-sizes", "none",
+                             "--no-hinges", "--no-fem", "--large", "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                            start_new_session=True)  # a signal to the command alone, as timeout(1) sends it
+    try:
+        end = time.monotonic() + 60
+        workers = []
+        while time.monotonic() < end and proc.poll() is None:
+            # the benchmark's sheet runs in a child process of its own (spawned: a python process)
+            workers = [p for p in _descendants(proc.pid) if "spawn" in _cmdline(p)]
+            if workers:
+                break
+            time.sleep(0.1)
+        assert workers, f"the benchmark started no worker within 60 s (exit {proc.poll()})"
+        kids = _descendants(proc.pid)
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 128 + int(sig), err
+    end = time.monotonic() + 5
+    while _alive(kids) and time.monotonic() < end:
+        time.sleep(0.05)
+    assert not _alive(kids), f"worker processes left running: {_alive(kids)}"
+    assert "Traceback" not in err and ("stopped by signal" in err or "interrupted" in err), err
+    assert not out.exists() or (out / "INCOMPLETE.txt").exists(), sorted(p.name for p in out.iterdir())
+
+
+def _cmdline(pid):
+    try:
+        with open(f"/proc/{pid}/cmdline", "rb") as f:
+            return f.read().replace(b"\0", b" ").decode(errors="replace")
+    except OSError:
+        return ""
+
+
+def test_stop_workers_ends_every_child_and_grandchild():
+    grandchild = "subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(60)'])"
+    child = subprocess.Popen([sys.executable, "-c", f"import subprocess, sys, time; {grandchild}; time.sleep(60)"])
+    end = time.monotonic() + 20
+    while not _descendants(child.pid) and time.monotonic() < end:
+        time.sleep(0.05)
+    pids = [child.pid, *_descendants(child.pid)]  # (the test process may have other children of its own)
+    assert len(pids) == 2 and set(pids) <= set(_descendants(os.getpid()))
+    stopped = stop_workers(grace=2.0)
+    assert set(pids) <= set(stopped)
+    child.wait(timeout=10)
+    end = time.monotonic() + 5
+    while _alive(pids) and time.monotonic() < end:
+        time.sleep(0.05)
+    assert not _alive(pids)
+
+
+def test_stopping_workers_turns_sigterm_into_stopped_and_restores_the_handler():
+    before = signal.getsignal(signal.SIGTERM)
+    with pytest.raises(Stopped) as info:
+        with stopping_workers():
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(5)
+    assert info.value.signum == signal.SIGTERM and isinstance(info.value, KeyboardInterrupt)
+    assert signal.getsignal(signal.SIGTERM) is before
