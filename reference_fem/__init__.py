@@ -5,7 +5,8 @@ coated with passive material (thickness ``d``) on one or both faces. The film ca
 eigenstrain ``eps* = R_free - 1``; panels (coated on both faces) shrink and stay flat, hinges
 (coated on one face) fold towards their free face. Solved with small strains
 (:func:`solve_linear`) or with finite strains and rotations (:func:`solve_nonlinear`,
-total Lagrangian, ``F = F_e F*``). It is the yardstick for GDFE's angles, shapes and speed.
+total Lagrangian, ``F = F_e F*``). Plates meshed from any GDFE design (:func:`plate_mesh`,
+:func:`solve_plate`) carry the coat wherever the design prints it. It is the yardstick for GDFE's angles, shapes and speed.
 
 Units: millimetres, radians, MPa.
 
@@ -21,6 +22,10 @@ from .material import CALIBRATED_E_RATIO, CALIBRATED_EIGENSTRAIN, DEFAULT_E_PASS
 from .measure import curvature, fit_circle, fold_angle, midline, midsurface, tangent_angles, turning_angle
 from .mesh import HINGE_RESOLUTIONS, LayeredStrip, Segment, hinge_mesh, layered_strip, strip_mesh
 from .solve import FemResult, solve_linear, solve_nonlinear
+from .plate import PLATE_RESOLUTIONS, DesignGrid, Plate, design_grid, plate_mesh
+from .plate_solve import PlateResult, solve_plate
+from .plate_measure import central_curvatures, grid_vertices
+from .plate_output import write_plate_series, write_plate_vtu
 from gdfe.timoshenko import laminate_curvature, timoshenko_curvature
 from .verify import arc_check, timoshenko_check
 
@@ -53,4 +58,15 @@ __all__ = [
     "fit_to_table",
     "unit_angles",
     "DEFAULT_RATIOS",
+    "Plate",
+    "DesignGrid",
+    "design_grid",
+    "plate_mesh",
+    "PLATE_RESOLUTIONS",
+    "PlateResult",
+    "solve_plate",
+    "grid_vertices",
+    "central_curvatures",
+    "write_plate_vtu",
+    "write_plate_series",
 ]

@@ -1,17 +1,23 @@
 """``gdfe fem``: the reference FEM (:mod:`reference_fem`) from the command line.
 
 Subcommands: ``hinge`` (fold one specimen), ``timoshenko-check`` (free bilayer against the closed
-form on a sequence of meshes), ``calibrate`` (fit E ratio and eigenstrain to folding tests).
+form on a sequence of meshes), ``calibrate`` (fit E ratio and eigenstrain to folding tests),
+``simulate`` (a plate meshed from any design file: VTU series over the load steps and a summary).
 scikit-fem is imported only when a subcommand runs.
 """
 
 from __future__ import annotations
 
+import logging
+from pathlib import Path
+
 from gdfe import paper
 from gdfe._validation import check_int, check_length, check_number
-from gdfe.cli._common import emit, json_arg, scheduler_arg, using_scheduler
+from gdfe.cli._common import emit, file_path, json_arg, noting, out_arg, output_folder, scheduler_arg, using_scheduler
 
 __all__ = ["register"]
+
+log = logging.getLogger(__name__)
 
 
 def register(subparsers) -> None:
@@ -70,6 +76,35 @@ def register(subparsers) -> None:
     json_arg(p, "the fit")
     scheduler_arg(p)
     p.set_defaults(func=_cmd_calibrate)
+
+    from reference_fem.linear_solvers import SOLVERS
+    from reference_fem.plate import PLATE_RESOLUTIONS
+    from reference_fem.plate_solve import SUPPORTS
+
+    p = sub.add_parser("simulate", help="deform a plate meshed from a design file (film + coats, hexahedra)",
+                       description="Mesh the film of a design file (TOML, SVG or FOLD) and the passive coat "
+                                   "wherever each face's mask prints it, apply the film's eigenstrain in load "
+                                   "steps (geometrically nonlinear) and write the deformed mesh as a VTU series "
+                                   "with a summary (converged, elements, unknowns, time, cost split).")
+    p.add_argument("design", type=file_path, help="design file (TOML, .svg or .fold)")
+    out_arg(p, required=True, help="output folder: fem.pvd, fem_###.vtu, fem.json")
+    p.add_argument("--resolution", choices=tuple(PLATE_RESOLUTIONS), default="default",
+                   help="elements per design cell in-plane (coarse 1, default 2, fine 4), 2 per ply")
+    p.add_argument("--refine", type=int, default=None, help="elements per design cell along x and y (over --resolution)")
+    p.add_argument("--coarsen", type=int, default=1, help="merge N x N design cells first (the same masks, coarser pixel)")
+    p.add_argument("--d", type=float, default=None,
+                   help="coat thickness [mm] where the design gives none (cells coated on both faces, designs made from R)")
+    p.add_argument("--support", choices=SUPPORTS, default="free",
+                   help="free-floating (rigid motions removed) or clamped along the edge at the smallest x")
+    p.add_argument("--solver", choices=SOLVERS, default="auto", help="linear solver of the Newton steps")
+    p.add_argument("--E-ratio", dest="E_ratio", type=float, default=None,
+                   help="E_passive / E_active (default: the Table-1 calibration)")
+    p.add_argument("--eigenstrain", type=float, default=None,
+                   help="free in-plane contraction of the film, R_free - 1 (default: calibrated)")
+    p.add_argument("--nu", type=float, default=0.35, help="Poisson's ratio of both layers")
+    p.add_argument("--linear", action="store_true", help="small-strain solve (default: geometrically nonlinear)")
+    json_arg(p)
+    p.set_defaults(func=_cmd_simulate)
 
 
 def _cmd_hinge(args) -> int:
@@ -145,7 +180,12 @@ def _cmd_calibrate(args) -> int:
     from gdfe.calibration import TABLE1, load_folding_tests
     from reference_fem import fit_to_table
 
-    tests = load_folding_tests(TABLE1 if args.table is None else args.table)
+    from gdfe._validation import degenerate_tests
+
+    source = TABLE1 if args.table is None else args.table
+    tests = load_folding_tests(source)
+    for note in degenerate_tests(Path(source).name, tests.L, tests.d, tests.h, tests.alpha):
+        log.warning("%s", note)
     with using_scheduler(args.scheduler):
         fit = fit_to_table(tests.L, tests.d, tests.h, tests.alpha, model=args.model, nu=args.nu,
                            resolution=args.resolution, progress=not args.json)
@@ -158,3 +198,77 @@ def _cmd_calibrate(args) -> int:
     ])
     emit(fit.as_dict(), args.json, text, command="fem calibrate")
     return 0
+
+
+def _cmd_simulate(args) -> int:
+    import gdfe
+    from reference_fem import CALIBRATED_E_RATIO, CALIBRATED_EIGENSTRAIN, BilayerMaterial
+    from reference_fem.plate import plate_mesh
+    from reference_fem.plate_output import write_plate_series
+    from reference_fem.plate_solve import solve_plate
+    from gdfe.io import write_json
+
+    if args.refine is not None:
+        check_int("--refine", args.refine)
+    check_int("--coarsen", args.coarsen)
+    if args.d is not None:
+        check_length("--d", args.d)
+    ratio = CALIBRATED_E_RATIO if args.E_ratio is None else check_number(
+        "--E-ratio", args.E_ratio, minimum=0.0, include_minimum=False, what="a positive ratio E_passive / E_active")
+    eps = CALIBRATED_EIGENSTRAIN if args.eigenstrain is None else check_number(
+        "--eigenstrain", args.eigenstrain, minimum=-1.0, maximum=0.0, include_minimum=False,
+        what="the film's free contraction R_free - 1 in (-1, 0] (the film shrinks when heated)")
+    folder = output_folder(args.out, args)
+    design, _ = gdfe.load_design(args.design)
+    mat = BilayerMaterial.from_ratio(ratio, eps, nu=args.nu)
+    plate = plate_mesh(design, resolution=args.resolution, refine=args.refine, coarsen=args.coarsen, d=args.d,
+                       meta={"design": str(args.design)})
+    with noting(folder):
+        res = solve_plate(plate, mat, support=args.support, solver=args.solver, linear=args.linear,
+                          keep_steps=True, progress=None if getattr(args, "quiet", False) else _step_line())
+        summary = {"design": str(args.design), **plate.summary(), **res.summary(), "dofs": res.dofs,
+                   "status": "converged" if res.converged else "not converged",
+                   "E_ratio": ratio, "eigenstrain": eps, "nu": args.nu, "support": args.support,
+                   "nonlinear": not args.linear, "memory_mib": _peak_memory_mib()}
+        with folder:
+            folder.status.update(converged=bool(res.converged), status=summary["status"])
+            pvd = write_plate_series(res, args.out, "fem")
+            summary["files"] = {"pvd": str(pvd), "json": str(args.out / "fem.json")}
+            write_json(args.out / "fem.json", summary)
+    c = res.cost
+    text = "\n".join([
+        f"{args.design}: plate FEM, {res.n_elements} elements ({plate.summary()['n_cells']} design cells x "
+        f"{plate.refine}^2 in-plane), {res.dofs} unknowns, {res.element}",
+        f"  {'converged' if res.converged else f'NOT CONVERGED (stopped at {res.load_factor:.3f} of the eigenstrain)'}"
+        f" in {res.iterations} Newton iterations over {summary['load_steps']} load steps "
+        f"({summary['rejected_steps']} cut), residual {res.residual:.1e}, {res.seconds:.1f} s",
+        f"  cost: assembly {c['assembly_s']:.1f} s ({c['assemblies']}), {res.solver} factorisation "
+        f"{c['factor_s']:.1f} s ({c['factorisations']}), solves {c['solve_s']:.1f} s, other "
+        f"{c['other_s'] + c['setup_s'] + c['residual_s']:.1f} s; {c['over_limit']:.2f} x its limit",
+        f"  wrote {summary['files']['pvd']} (open in ParaView), {summary['files']['json']}",
+    ])
+    emit(summary, args.json, text, command="fem simulate")
+    return 0 if res.converged else 1
+
+
+def _step_line():
+    """A line on standard error after every accepted load step: the solve says it is alive."""
+    import sys
+    import time
+
+    t0 = time.perf_counter()
+
+    def line(load, iterations, residual):
+        print(f"gdfe: fem load {load:.3f} converged ({iterations} Newton iterations, residual {residual:.1e}), "
+              f"{time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
+
+    return line
+
+
+def _peak_memory_mib():
+    """Peak resident memory of this process [MiB] (None where the system does not tell)."""
+    try:
+        import resource
+    except ImportError:  # pragma: no cover - not on Windows
+        return None
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
