@@ -46,6 +46,13 @@ For the paper's hinge specimen (:func:`gdfe.hinge`) the stages give the diagnosi
 form, ``alpha = alpha_max tanh(c(d + delta) (L + lambda) / (h (1 + beta c) alpha_max))``, up to
 GDFE's discretisation (tested).
 
+**Predictive content.** A model may carry what a prediction with an interval needs
+(:class:`Uncertainty`: the covariance of the fitted parameters, the scatter of a new test about
+the model and its degrees of freedom, a fitted reading offset) and, from a diagnosis, every
+model of its named set with a weight (:class:`Member`, ``weighting``); :mod:`gdfe.predictive`
+makes them and :mod:`gdfe.predict` uses them. A file without them (format 1) still loads: its
+predictions then take the parameters' standard errors as uncorrelated.
+
 A cell free on both faces (``FREE_SHRINK``) has no coat to bend against: the bilayer
 principle does not apply to it, and it shrinks by the model's contraction at the design's
 nominal passive thickness (the paper's single R). Lengths in mm, angles in rad.
@@ -67,13 +74,17 @@ from gdfe._validation import (GdfeError, GdfeFileNotFoundError, GdfeTypeError, c
                               check_number, describe, read_text)
 from gdfe.physical_ranges import RANGES, range_of
 
-__all__ = ["DeformationModel", "Parameter", "PRINCIPLES", "MECHANISMS", "paper_model", "load_model",
-           "as_model", "MODEL_FORMAT"]
+__all__ = ["DeformationModel", "Parameter", "Uncertainty", "Member", "PRINCIPLES", "MECHANISMS", "paper_model",
+           "load_model", "as_model", "MODEL_FORMAT", "WEIGHTINGS"]
 
 log = logging.getLogger(__name__)
 
-#: Version of the model-file format written by :meth:`DeformationModel.save`.
-MODEL_FORMAT = 1
+#: Version of the model-file format written by :meth:`DeformationModel.save` (2: predictive content;
+#: files of format 1 still load).
+MODEL_FORMAT = 2
+
+#: How the members of a model's named set may be weighted (:mod:`gdfe.predictive`).
+WEIGHTINGS = ("stacking", "pseudo-bma", "single")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -146,6 +157,92 @@ class Parameter:
         return out
 
 
+@dataclasses.dataclass(frozen=True)
+class Uncertainty:
+    """What a model's predictions need beyond its parameter values.
+
+    Attributes
+    ----------
+    names : tuple of str
+        The parameters of :attr:`covariance`, in its order: the model's, and ``"offset"``
+        where the fit also had a reading offset.
+    covariance : tuple of tuples of float
+        ``(k, k)`` covariance of the fitted parameters (units of the parameters squared),
+        ``s^2 (J^T W J)^-1`` at the optimum.
+    noise_rad : float [rad]
+        Standard deviation of a new test about the model: the residual scatter of the fit,
+        ``sqrt(sum w r^2 / (n - k))``.
+    dof : int
+        Degrees of freedom of ``noise_rad`` (``n - k``); intervals use Student's t with them.
+    reading_offset_rad : float [rad]
+        The fitted reading offset (a measured angle is the fold plus it; 0 where none).
+    noise_source : str
+        Where ``noise_rad`` came from, in words.
+    """
+
+    names: tuple
+    covariance: tuple
+    noise_rad: float
+    dof: int
+    reading_offset_rad: float = 0.0
+    noise_source: str = ""
+
+    def __post_init__(self):
+        names = tuple(str(n) for n in self.names)
+        if len(set(names)) != len(names):
+            raise GdfeError(f"uncertainty.names: expected distinct parameter names, got {list(names)}")
+        try:
+            cov = np.array(self.covariance, float)
+        except (TypeError, ValueError):
+            raise GdfeError(f"uncertainty.covariance: expected a {len(names)} x {len(names)} table of numbers, got "
+                            f"{describe(self.covariance)}") from None
+        k = len(names)
+        if cov.shape != (k, k) or not np.all(np.isfinite(cov)):
+            raise GdfeError(f"uncertainty.covariance: expected a finite {k} x {k} matrix (one row per name), got "
+                            f"{describe(cov)}")
+        if not np.allclose(cov, cov.T, rtol=1e-6, atol=1e-12 * (1 + np.abs(cov).max(initial=0))):
+            raise GdfeError("uncertainty.covariance: expected a symmetric matrix")
+        if k and np.linalg.eigvalsh(cov).min() < -1e-8 * max(np.abs(cov).max(), 1e-300):
+            raise GdfeError("uncertainty.covariance: expected a positive semi-definite matrix (a covariance)")
+        check_number("uncertainty.noise_rad", self.noise_rad, minimum=0.0)
+        if isinstance(self.dof, bool) or not isinstance(self.dof, (int, np.integer)) or self.dof < 1:
+            raise GdfeError(f"uncertainty.dof: expected a whole number >= 1, got {describe(self.dof)}")
+        check_number("uncertainty.reading_offset_rad", self.reading_offset_rad)
+        object.__setattr__(self, "names", names)
+        object.__setattr__(self, "covariance", tuple(tuple(float(v) for v in row) for row in cov))
+        object.__setattr__(self, "noise_rad", float(self.noise_rad))
+        object.__setattr__(self, "dof", int(self.dof))
+        object.__setattr__(self, "reading_offset_rad", float(self.reading_offset_rad))
+
+    def matrix(self):
+        """The covariance as a ``(k, k)`` float array."""
+        return np.array(self.covariance, float).reshape(len(self.names), len(self.names))
+
+    def as_dict(self):
+        out = {"names": list(self.names), "covariance": [list(r) for r in self.covariance],
+               "noise_rad": self.noise_rad, "dof": self.dof}
+        if self.reading_offset_rad:
+            out["reading_offset_rad"] = self.reading_offset_rad
+        if self.noise_source:
+            out["noise_source"] = self.noise_source
+        return out
+
+
+@dataclasses.dataclass(frozen=True)
+class Member:
+    """One model of a diagnosis's named set, with its weight in the predictions."""
+
+    weight: float
+    model: "DeformationModel"
+
+    def __post_init__(self):
+        check_number("member weight", self.weight, minimum=0.0, maximum=1.0)
+        if not isinstance(self.model, DeformationModel):
+            raise GdfeTypeError(f"member model: expected a gdfe.DeformationModel, got {type(self.model).__name__}")
+        if self.model.ensemble:
+            raise GdfeError(f"member {self.model.name!r}: expected a single model, got one with members of its own")
+
+
 def _provenance_file(path):
     path = Path(path)
     return {"file": path.name, "sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
@@ -174,6 +271,14 @@ class DeformationModel:
         Doubtful parameters and what they mean (:data:`PHYSICAL_RANGES` adds its own).
     version : str
         The gdfe version that made it.
+    uncertainty : Uncertainty or None
+        The covariance of its parameters and the noise of a new test (None: not known; a
+        file of format 1).
+    ensemble : tuple of Member
+        Every model the data could not tell from this one (this one among them), with its
+        weight; empty for a single model.
+    weighting : str
+        How the members were weighted (:data:`WEIGHTINGS`, :mod:`gdfe.predictive`).
     """
 
     principle: str
@@ -186,6 +291,9 @@ class DeformationModel:
     version: str = ""
     columns: dict = dataclasses.field(default_factory=dict)
     labels: tuple = ()
+    uncertainty: Uncertainty | None = None
+    ensemble: tuple = ()
+    weighting: str = ""
 
     def __post_init__(self):
         check_choice("principle", self.principle, PRINCIPLES)
@@ -237,6 +345,28 @@ class DeformationModel:
         object.__setattr__(self, "warnings", tuple(self.warnings) + tuple(
             w for w in self.doubts() if w not in self.warnings))
         object.__setattr__(self, "data", dict(self.data))
+        self._check_predictive()
+
+    def _check_predictive(self):
+        if self.uncertainty is not None:
+            if not isinstance(self.uncertainty, Uncertainty):
+                raise GdfeTypeError(f"uncertainty: expected a gdfe.model.Uncertainty, got "
+                                    f"{type(self.uncertainty).__name__}")
+            extra = [n for n in self.uncertainty.names if n not in self.params and n != "offset"]
+            if extra:
+                raise GdfeError(f"uncertainty.names: expected parameters of the model ({', '.join(self.params)}) or "
+                                f"offset, got {', '.join(extra)}")
+        members = tuple(self.ensemble)
+        object.__setattr__(self, "ensemble", members)
+        if not members:
+            return
+        for m in members:
+            if not isinstance(m, Member):
+                raise GdfeTypeError(f"ensemble: expected gdfe.model.Member items, got {type(m).__name__}")
+        total = sum(m.weight for m in members)
+        if abs(total - 1.0) > 1e-6:
+            raise GdfeError(f"ensemble: expected member weights that sum to 1, got {total:.6g}")
+        check_choice("weighting", self.weighting, WEIGHTINGS)
 
     @staticmethod
     def _check_admissible(params):
@@ -518,6 +648,14 @@ class DeformationModel:
         if self.data:
             out["data"] = dict(self.data)
         out["warnings"] = list(self.warnings)
+        if self.uncertainty is not None:
+            out["uncertainty"] = self.uncertainty.as_dict()
+        if self.ensemble:
+            members = []
+            for m in self.ensemble:
+                entry = {k: v for k, v in m.model.as_dict().items() if k not in ("format", "gdfe_version")}
+                members.append({"weight": m.weight, **entry})
+            out["ensemble"] = {"weighting": self.weighting, "members": members}
         return out
 
     def save(self, path):
@@ -529,8 +667,7 @@ class DeformationModel:
         head = (f"# gdfe deformation model: {self.describe_principle()}"
                 + (f"; mechanisms {', '.join(self.mechanisms)}" if self.mechanisms else "") + "\n"
                 "# read with gdfe.load_model(PATH), gdfe simulate --model PATH, or [film] model = PATH\n")
-        doc = {k: v for k, v in self.as_dict().items() if v not in (None, "")}
-        return write_text(path, head + tomli_w.dumps(doc))
+        return write_text(path, head + tomli_w.dumps(_toml_ready(self.as_dict())))
 
     @classmethod
     def load(cls, path):
@@ -539,16 +676,21 @@ class DeformationModel:
 
     # -- makers ---------------------------------------------------------------------------------
     @classmethod
-    def from_calibration(cls, fit, data=None, held_out_rmse=None):
+    def from_calibration(cls, fit, data=None, held_out_rmse=None, tests=None):
         """The model of a reading of Eq. 1 fitted to folding tests (:func:`gdfe.fit_reading`).
 
         Parameters
         ----------
         fit : CalibrationFit
         data : path, optional
-            The CSV it was fitted to (its name and sha256 go into the model).
+            The CSV it was fitted to (its name and sha256 go into the model; its tests give
+            the predictive content when ``tests`` is not given).
         held_out_rmse : float, optional
             Its leave-one-out RMSE [rad].
+        tests : FoldingTests, optional
+            The tests it was fitted to: the model then carries the covariance of its
+            parameters, ``s^2 (J^T J)^-1`` by central differences of its closed form, and the
+            noise ``s = sqrt(RSS / (n - k))`` (:class:`Uncertainty`).
         """
         from gdfe._version import __version__
 
@@ -562,8 +704,15 @@ class DeformationModel:
         if held_out_rmse is not None:
             info["held_out_rmse_rad"] = float(held_out_rmse)
             info["held_out"] = "leave one test out"
-        return cls(principle=fit.model, params=params, name=f"calibration {fit.model}",
-                   source="gdfe calibrate", data=info, version=__version__)
+        model = cls(principle=fit.model, params=params, name=f"calibration {fit.model}",
+                    source="gdfe calibrate", data=info, version=__version__)
+        if tests is None and data is not None:
+            from gdfe.calibration import load_folding_tests
+
+            tests = load_folding_tests(data)
+        if tests is None or len(tests) != fit.n or fit.n <= len(params):
+            return model
+        return dataclasses.replace(model, uncertainty=_least_squares_uncertainty(model, tests))
 
     @classmethod
     def from_effect_fit(cls, fit, data=None, n_tests=None, held_out="loo"):
@@ -619,6 +768,36 @@ class DeformationModel:
                    warnings=notes)
 
 
+def _least_squares_uncertainty(model, tests):
+    """:class:`Uncertainty` of a model fitted by least squares to ``tests`` (no process mechanisms):
+    the Jacobian of its hinge closed form by central differences."""
+    names = tuple(model.params)
+    mu = model.hinge_angle(tests.L, tests.d, tests.h)
+    J = np.empty((len(tests), len(names)))
+    for j, k in enumerate(names):
+        v = model.value(k)
+        step = 1e-5 * max(abs(v), 1e-3)
+        angles = []
+        for x in (v + step, v - step):
+            params = {q: dataclasses.replace(p, value=x if q == k else p.value) for q, p in model.params.items()}
+            angles.append(dataclasses.replace(model, params=params, warnings=()).hinge_angle(tests.L, tests.d, tests.h))
+        J[:, j] = (angles[0] - angles[1]) / (2 * step)
+    n, k = J.shape
+    s2 = float(np.sum((tests.alpha - mu) ** 2)) / (n - k)
+    cov = s2 * np.linalg.pinv(J.T @ J)
+    return Uncertainty(names=names, covariance=0.5 * (cov + cov.T), noise_rad=float(np.sqrt(s2)), dof=n - k,
+                       noise_source=f"residual scatter of the fit, sqrt(RSS / (n - k)) with n = {n}, k = {k}")
+
+
+def _toml_ready(obj):
+    """``obj`` without the None and empty-string values TOML cannot hold (recursively)."""
+    if isinstance(obj, dict):
+        return {k: _toml_ready(v) for k, v in obj.items() if v is not None and not (isinstance(v, str) and v == "")}
+    if isinstance(obj, list):
+        return [_toml_ready(v) for v in obj]
+    return obj
+
+
 def _finite_or_none(x):
     return float(x) if x is not None and np.isfinite(x) else None
 
@@ -644,7 +823,10 @@ def as_model(model, base=None):
 
 # -- reading model files --------------------------------------------------------------------------
 _TOP_KEYS = ("format", "name", "principle", "mechanisms", "source", "gdfe_version", "parameters", "data",
-             "warnings", "columns", "labels")
+             "warnings", "columns", "labels", "uncertainty", "ensemble")
+_MEMBER_KEYS = ("weight", "name", "principle", "mechanisms", "source", "parameters", "data", "warnings", "columns",
+                "labels", "uncertainty")
+_UNCERTAINTY_KEYS = ("names", "covariance", "noise_rad", "dof", "reading_offset_rad", "noise_source")
 _PARAM_KEYS = ("value", "unit", "se", "ci95", "at_bound")
 _DATA_KEYS = ("file", "sha256", "n_tests", "rmse_rad", "held_out_rmse_rad", "held_out")
 
@@ -672,7 +854,7 @@ def load_model(path):
 
     Every key and value is checked: an unknown key (with a "did you mean"), a wrong type, a
     parameter a film cannot have, a missing file — each is a :class:`gdfe.GdfeError` naming
-    the file and the key.
+    the file and the key. Files of format 1 (no predictive content) load as before.
     """
     try:
         import tomllib
@@ -689,11 +871,79 @@ def load_model(path):
         raise GdfeError(f"{path.name}: not valid TOML: {exc}") from None
     name = path.name
     _unknown(name, doc, _TOP_KEYS)
+    if "format" in doc and _num(f"{name}: format", doc["format"], integer=True) > MODEL_FORMAT:
+        raise GdfeError(f"{name}: format {doc['format']} is newer than this gdfe reads ({MODEL_FORMAT})")
+    members, weighting = _ensemble(name, doc.get("ensemble"))
+    model = _model_of(name, doc, ensemble=members, weighting=weighting)
+    for w in model.warnings:
+        if w not in doc.get("warnings", []):
+            log.warning("%s: %s", name, w)
+    return model
+
+
+def _ensemble(where, spec):
+    """The members and weighting of an ``[ensemble]`` table (none when absent)."""
+    if spec is None:
+        return (), ""
+    if not isinstance(spec, dict):
+        raise GdfeError(f"{where}: ensemble: expected a table, got {describe(spec)}")
+    _unknown(f"{where}: ensemble", spec, ("weighting", "members"))
+    members = spec.get("members")
+    if not isinstance(members, list) or not members or not all(isinstance(m, dict) for m in members):
+        raise GdfeError(f"{where}: ensemble.members: expected one or more tables ([[ensemble.members]]), got "
+                        f"{describe(members)}")
+    weighting = _str(f"{where}: ensemble.weighting", spec.get("weighting", ""))
+    if weighting not in WEIGHTINGS:
+        raise GdfeError(f"{where}: ensemble.weighting: expected one of {', '.join(WEIGHTINGS)}, got {weighting!r}")
+    out = []
+    for i, m in enumerate(members):
+        here = f"{where}: ensemble.members[{i}]"
+        _unknown(here, m, _MEMBER_KEYS)
+        if "weight" not in m:
+            raise GdfeError(f"{here}: missing key 'weight'")
+        weight = float(_num(f"{here}.weight", m["weight"]))
+        model = _model_of(here, m)  # its errors name the member already
+        try:
+            out.append(Member(weight, model))
+        except GdfeError as exc:
+            raise GdfeError(f"{here}: {exc}") from None
+    return tuple(out), weighting
+
+
+def _uncertainty_of(where, spec):
+    if spec is None:
+        return None
+    if not isinstance(spec, dict):
+        raise GdfeError(f"{where}: uncertainty: expected a table, got {describe(spec)}")
+    _unknown(f"{where}: uncertainty", spec, _UNCERTAINTY_KEYS)
+    for k in ("names", "covariance", "noise_rad", "dof"):
+        if k not in spec:
+            raise GdfeError(f"{where}: uncertainty: missing key {k!r}")
+    names = spec["names"]
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        raise GdfeError(f"{where}: uncertainty.names: expected a list of parameter names, got {describe(names)}")
+    cov = spec["covariance"]
+    if not isinstance(cov, list) or not all(isinstance(r, list) for r in cov):
+        raise GdfeError(f"{where}: uncertainty.covariance: expected a list of rows, got {describe(cov)}")
+    for r in cov:
+        for v in r:
+            _num(f"{where}: uncertainty.covariance", v)
+    try:
+        return Uncertainty(names=tuple(names), covariance=cov, noise_rad=_num(f"{where}: uncertainty.noise_rad",
+                                                                            spec["noise_rad"]),
+                           dof=_num(f"{where}: uncertainty.dof", spec["dof"], integer=True),
+                           reading_offset_rad=_num(f"{where}: uncertainty.reading_offset_rad",
+                                                   spec.get("reading_offset_rad", 0.0)),
+                           noise_source=_str(f"{where}: uncertainty.noise_source", spec.get("noise_source", "")))
+    except GdfeError as exc:
+        raise GdfeError(f"{where}: {exc}") from None
+
+
+def _model_of(name, doc, ensemble=(), weighting=""):
+    """The :class:`DeformationModel` of a model file's table (the file itself, or a member)."""
     for key in ("principle", "parameters"):
         if key not in doc:
             raise GdfeError(f"{name}: missing key {key!r}")
-    if "format" in doc and _num(f"{name}: format", doc["format"], integer=True) > MODEL_FORMAT:
-        raise GdfeError(f"{name}: format {doc['format']} is newer than this gdfe reads ({MODEL_FORMAT})")
     principle = _str(f"{name}: principle", doc["principle"])
     if principle not in PRINCIPLES:
         raise GdfeError(f"{name}: principle: expected one of {', '.join(PRINCIPLES)}, got {principle!r}")
@@ -748,17 +998,15 @@ def load_model(path):
     labels = doc.get("labels", [])
     if not isinstance(labels, list) or not all(isinstance(v, str) for v in labels):
         raise GdfeError(f"{name}: labels: expected a list of group labels, got {describe(labels)}")
+    uncertainty = _uncertainty_of(name, doc.get("uncertainty"))
     try:
-        model = DeformationModel(principle=principle, params=parsed, mechanisms=tuple(mech),
-                                 name=doc.get("name"), source=doc.get("source", ""), data=data,
-                                 warnings=tuple(warnings), version=doc.get("gdfe_version", ""),
-                                 columns=columns, labels=tuple(labels))
+        return DeformationModel(principle=principle, params=parsed, mechanisms=tuple(mech),
+                                name=doc.get("name"), source=doc.get("source", ""), data=data,
+                                warnings=tuple(warnings), version=doc.get("gdfe_version", ""),
+                                columns=columns, labels=tuple(labels), uncertainty=uncertainty,
+                                ensemble=ensemble, weighting=weighting)
     except GdfeError as exc:
         raise GdfeError(f"{name}: {exc}") from None
-    for w in model.warnings:
-        if w not in warnings:
-            log.warning("%s: %s", name, w)
-    return model
 
 
 # -- geometry of the mechanisms -------------------------------------------------------------------

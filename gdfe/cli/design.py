@@ -30,6 +30,7 @@ from pathlib import Path
 from gdfe import paper
 from gdfe._validation import GdfeError, check_length
 from gdfe.cli._common import emit, file_path, json_arg, noting, out_arg, output_folder
+from gdfe.cli._uncertainty import check_uncertainty, run_ensemble, uncertainty_args, write_ensemble
 from gdfe.inverse2d.design import DEFAULT_ITERATIONS
 from gdfe.inverse2d.masks import PROJECTIONS
 
@@ -92,6 +93,7 @@ def register(sub):
                    help="coating fractions to masks: halftone (default), nested halftones, or threshold at 1/2")
     g.add_argument("--tolerance", type=float, help="RMS distance [mm] below which the target counts as reached "
                                                    "(default 1 %% of the film's size)")
+    uncertainty_args(p)
     json_arg(p, "the summary")
     p.set_defaults(func=run)
 
@@ -164,7 +166,8 @@ _ONLY_1D = (("input", "INPUT"), ("text", "--text"), ("R", "--R"), ("K", "--K"), 
             ("weights", "--weights"), ("rounding", "--rounding"), ("clamp", "--clamp"), ("svg_id", "--svg-id"),
             ("spacing", "--spacing"))
 _ONLY_2D = (("size", "--size"), ("model", "--model"), ("iterations", "--iterations"), ("radius", "--radius"),
-            ("angle", "--angle"), ("projection", "--projection"), ("tolerance", "--tolerance"))
+            ("angle", "--angle"), ("projection", "--projection"), ("tolerance", "--tolerance"),
+            ("uncertainty", "--uncertainty"), ("level", "--level"), ("seed", "--seed"))
 
 
 def _check_mode(args):
@@ -301,6 +304,35 @@ def _text(ch, records, out, pkg):
 
 
 # -- 2-D design from a target surface -------------------------------------------------------------------------
+#: Bytes of memory per byte of a target mesh's file while it is read, merged and flattened (meshio's arrays,
+#: the merged vertices, the conformal map's sparse system): a generous bound, for the guard before reading.
+TARGET_BYTES_PER_FILE_BYTE = 60
+#: Seconds per triangle of the checks and the conformal flattening, about (a mesh's file holds some 50
+#: bytes per triangle in binary STL, more in text formats).
+TARGET_SECONDS_PER_TRIANGLE, TARGET_FILE_BYTES_PER_TRIANGLE = 2e-5, 50
+
+
+def _check_target_mesh(target):
+    """A target mesh's file: its size guarded before it is read, and the surface checked (one disc-like
+    piece, manifold, oriented, not passing through itself) before it is flattened."""
+    from pathlib import Path
+
+    from gdfe._validation import check_surface_mesh
+    from gdfe.inverse2d import MESH_SUFFIXES, read_triangle_mesh
+    from gdfe.resources import check_work
+
+    path = Path(target)
+    if path.suffix.lower() not in MESH_SUFFIXES or not path.is_file():
+        return  # an analytic target, or a missing file that make_target names
+    size = path.stat().st_size
+    triangles = size / TARGET_FILE_BYTES_PER_TRIANGLE
+    check_work(f"--target {path.name}", size * TARGET_BYTES_PER_FILE_BYTE,
+               f"a mesh file of {size / 2**20:.4g} MiB (about {triangles:.3g} triangles)",
+               "decimate the mesh (e.g. in MeshLab) first", seconds=triangles * TARGET_SECONDS_PER_TRIANGLE)
+    V, T = read_triangle_mesh(path)
+    check_surface_mesh(f"--target {path.name}", V, T)
+
+
 def _run_target(args, begin_output):
     from gdfe.cli._progress import Progress, announce_estimate, progress_mode
     from gdfe.inverse2d import design_surface, make_target, write_design
@@ -308,6 +340,7 @@ def _run_target(args, begin_output):
     from gdfe.model import as_model, paper_model
 
     ch = _Choices()
+    _check_target_mesh(args.target)
     target = make_target(args.target, args.size, radius=args.radius, angle=args.angle,
                          width=args.width if args.target == "twist" else None)
     if args.width is not None and args.target != "twist":
@@ -320,8 +353,13 @@ def _run_target(args, begin_output):
     h = ch.pick("h", args.h, None, paper.H, "paper", "mm")
     d = ch.pick("d", args.d, None, paper.FIG6_D, "paper (Fig. 6 specimens)", "mm")
     model = as_model(args.model) if args.model is not None else paper_model()
+    n_draws = check_uncertainty(args, model if args.model is not None else None)
     ch.set("model", model.name + (f" ({args.model})" if args.model else ""),
            "command line" if args.model else "paper (Eq. 3)")
+    if args.model is not None:  # the file's content, so that the design can be traced to it
+        import hashlib
+
+        ch.set("model_sha256", hashlib.sha256(Path(args.model).read_bytes()).hexdigest(), "the model file")
     pixel = ch.pick("pixel", args.pixel, None, DEFAULT_PIXEL, "default (the paper gives no printer pixel)", "mm")
     w_min = ch.pick("w_min", args.w_min, None, pixel, "default: one pixel", "mm")
     iterations = ch.pick("iterations", args.iterations, None, DEFAULT_ITERATIONS, "default")
@@ -351,10 +389,47 @@ def _run_target(args, begin_output):
     name = target.name
     written = write_design(result, args.out, name=name)
     summary = written.summary
-    emit(summary, args.json, _text_target(ch, result, args.out, written.files), command="design")
+    ens = None
+    if n_draws is not None:
+        ens = _target_ensemble(result, model, n_draws, args)
+        summary["uncertainty"] = {**ens.as_dict(), "within_tolerance": ens.within("rms_mm", result.tolerance_mm)}
+        summary["files"].update({k: str(v) for k, v in write_ensemble(
+            ens, result.printable, args.out, f"{name}_check", f"{name}: the printed fold under {n_draws} draws",
+            threshold=("tolerance_mm", result.tolerance_mm), png_name=f"{name}_uncertainty.png").items()})
+        from gdfe.io import write_json
+
+        write_json(written.files["json"], summary)
+    text = _text_target(ch, result, args.out, written.files)
+    if ens is not None:
+        w = summary["uncertainty"]["within_tolerance"]
+        text += (f"\n{ens.text()}\n    within the tolerance ({result.tolerance_mm:.3g} mm RMS): probability "
+                 f"{w['probability']:.2f} ({100 * ens.level:g} % interval {w['interval'][0]:.2f}-"
+                 f"{w['interval'][1]:.2f}, {w['draws']} draws)")
+    emit(summary, args.json, text, command="design")
     if not result.printable.converged:
         return 3
     return 0 if result.reached else 4
+
+
+class _TargetDistance:
+    """The distance of a fold of the printed design from the target surface (RMS and largest, mm): the measure of
+    an ensemble (:func:`gdfe.ensemble.fold_ensemble`), which travels to the workers."""
+
+    def __init__(self, mid, surface, designed):
+        self.mid, self.surface, self.designed = mid, surface, designed
+
+    def __call__(self, res):
+        from gdfe.inverse2d.distance import surface_distance
+
+        d = surface_distance(self.mid.points(res.points), self.mid.triangles, self.surface, designed=self.designed)
+        return [], {"rms_mm": d.rms_mm, "max_mm": d.max_mm}
+
+
+def _target_ensemble(result, model, n, args):
+    """The printed design of ``result`` folded under ``n`` draws of ``model``, measured against the target."""
+    mid = result.film.mid
+    measure = _TargetDistance(mid, result.target_surface, result.target.point(mid.flat, result.sigma))
+    return run_ensemble(result.printable.design, model, n, args, result.printable, measure, [])
 
 
 def _distance_text(d):

@@ -11,6 +11,7 @@ from gdfe.cli._common import (contact_fields, contact_text, emit, exit_status, f
                                noting, out_arg, output_folder, process_arg, solve, solver_args, status_word,
                                write_outputs)
 from gdfe.cli._progress import progress_mode
+from gdfe.cli._uncertainty import check_uncertainty, run_ensemble, uncertainty_args, write_ensemble
 from gdfe.mesh import DEFAULT_NZ
 
 __all__ = ["register", "run"]
@@ -38,6 +39,7 @@ def register(sub):
                    help="transverse/longitudinal shrink: 1 isotropic (default), 0 uniaxial")
     process_arg(p)
     solver_args(p)
+    uncertainty_args(p)
     out_arg(p, help="write the VTU series, a PNG and result.json into this folder")
     json_arg(p)
     p.set_defaults(func=run)
@@ -54,9 +56,14 @@ def _run(args, folder):
 
     if args.d is None and args.R is None:
         raise GdfeError("give --d (passive thickness, mm) or --R (contraction ratio)")
+    if args.d is not None and args.R is not None:
+        raise GdfeError(f"--d, --R: expected one of them, got --d {args.d:g} and --R {args.R:g}: --R sets the "
+                        f"contraction directly, so --d would be used for nothing but a misleading Eq. 1 "
+                        f"comparison; give --d for R from Eq. 3 (or --model), or --R alone")
     model = gdfe.load_model(args.model) if args.model is not None else None
     if model is not None and args.d is None:
         raise GdfeError("--model: expected --d too (the model gives R from the passive thickness)")
+    n_draws = check_uncertainty(args, model)
     K = gdfe.PAPER_K if args.K is None else args.K
     cell_size = None if args.cells is None else args.length / check_int("--cells", args.cells)
     try:
@@ -81,8 +88,13 @@ def _run(args, folder):
         "residual": res.residual,
         "seconds": res.seconds, "n_cells": design.n_cells, "method": res.method,
     }
+    out["contraction_source"] = design.meta.get("contraction_source")
+    for key in ("process", "process_used", "process_unused"):
+        if key in design.meta:
+            out[key] = design.meta[key]
     if model is not None:
         out["model"] = model.as_dict()
+        out["model_file"] = _model_file(args.model)
         out["fold_angle_model_rad"] = float(model.hinge_angle(args.length, args.d, args.h, args.process))
     if model is not None:
         ref = out["fold_angle_model_rad"]
@@ -90,12 +102,18 @@ def _run(args, folder):
         ref = out["fold_angle_eq1_rad"] if out["fold_angle_eq1_rad"] is not None else out["fold_angle_eq2_rad"]
     out["error_rad"] = alpha - ref
     out.update(contact_fields(res))
+    ens = None
+    if n_draws is not None:
+        ens = run_ensemble(design, model, n_draws, args, res, _hinge_measure, ["hinge"], process=args.process)
+        out["uncertainty"] = ens.as_dict()
     if folder is not None:
         out["title"] = f"hinge L={args.length:g} mm: fold angle {alpha:.4f} rad ({math.degrees(alpha):.1f} deg)"
         with folder:
             folder.status.update(converged=bool(res.converged), status=status_word(res))
             out["files"] = write_outputs(res, args.out, "hinge", out, progress=progress_mode(args),
                                          command="hinge")
+            if ens is not None:
+                out["files"].update(write_ensemble(ens, res, args.out, "hinge", out["title"]))
     lengthened = ""
     if "panel_lengthened_from_mm" in design.meta:  # the model's contraction reached through the panels
         out["panel_lengthened_from_mm"] = design.meta["panel_lengthened_from_mm"]
@@ -113,6 +131,22 @@ def _run(args, folder):
             + f"  Eq. 2 (1-R)L/h   {out['fold_angle_eq2_rad']:.4f} rad\n" + lengthened
             + f"  {iterations_text(res)}, residual {res.residual:.1e}, {res.seconds:.2f} s, {design.n_cells} elements\n"
             + contact_text(res)
+            + (f"\n{ens.text()}" if ens is not None else "")
             + (f"\n  wrote {args.out}/hinge.pvd (open in ParaView), hinge.png, result.json" if args.out else ""))
     emit(out, args.json, text, command="hinge")
     return exit_status(res, allow_penetration=args.allow_penetration)
+
+
+def _model_file(path):
+    """``{"file", "sha256"}`` of the model file the command read."""
+    import hashlib
+
+    return {"file": str(path), "sha256": hashlib.sha256(Path(path).read_bytes()).hexdigest()}
+
+
+def _hinge_measure(res):
+    """The fold angle of a hinge specimen, for :func:`gdfe.ensemble.fold_ensemble` (module-level: it travels to
+    the workers)."""
+    import gdfe
+
+    return [gdfe.fold_angle(res)], {}

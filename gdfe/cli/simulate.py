@@ -7,6 +7,7 @@ from pathlib import Path
 from gdfe.cli._common import (contact_text, emit, exit_status, file_path, iterations_text, json_arg, noting, out_arg,
                                output_folder, process_arg, solve, solver_args, status_word, write_outputs)
 from gdfe.cli._progress import progress_mode
+from gdfe.cli._uncertainty import check_uncertainty, run_ensemble, uncertainty_args, write_ensemble
 
 __all__ = ["register", "run"]
 
@@ -26,6 +27,7 @@ def register(sub):
                         "package of masks (zip)")
     p.add_argument("--export-frame", type=int, default=-1, metavar="K",
                    help="frame of the ramp to export as STL/OBJ/PLY (default -1: the folded shape; 0: flat)")
+    uncertainty_args(p)
     json_arg(p, "the summary")
     p.set_defaults(func=run)
 
@@ -96,6 +98,7 @@ def _run(args, folder):
     import gdfe
 
     design, options = gdfe.load_design(args.design, model=args.model, process=args.process)
+    n_draws = check_uncertainty(args, design.model)
     res = solve(design, args, options, source=args.design.name)
     summary = {"design": str(args.design), **design.summary(), **res.summary(), "status": status_word(res),
                "frame_iterations": list(res.frame_iterations), "nz": int(design.mesh.cell_k.max()) + 1}
@@ -104,6 +107,11 @@ def _run(args, folder):
     summary.update(_measured(res, design))
     summary["bbox_mm"] = [res.points.min(0).tolist(), res.points.max(0).tolist()]
     summary["title"] = f"{args.design.stem}: {_angles_text(summary).strip()}"
+    ens = None
+    if n_draws is not None:
+        ens = run_ensemble(design, design.model, n_draws, args, res, _ensemble_measure,
+                           _angle_labels(summary), process=args.process)
+        summary["uncertainty"] = ens.as_dict()
     exported = {}
     with folder:
         folder.status.update(converged=bool(res.converged), status=status_word(res))
@@ -114,6 +122,8 @@ def _run(args, folder):
             summary["exported"] = {k: str(v) for k, v in exported.items()}
         summary["files"] = write_outputs(res, args.out, args.design.stem, summary, progress=progress_mode(args),
                                          command="simulate")
+        if ens is not None:
+            summary["files"].update(write_ensemble(ens, res, args.out, args.design.stem, summary["title"]))
     text = (f"{args.design}: {design.n_cells} elements, {iterations_text(res)}, residual {res.residual:.1e}, "
             f"{res.seconds:.2f} s\n"
             + _film_text(design)
@@ -124,5 +134,42 @@ def _run(args, folder):
             + (f"\n  exported {', '.join(str(v) for v in exported.values())}" if exported else "")
             + ("\n  not exported: the solver did not converge" if args.export and not res.converged else ""))
     text += "\n" + contact_text(res)
+    if ens is not None:
+        text += "\n" + ens.text()
     emit(summary, args.json, text, command="simulate")
     return exit_status(res, allow_penetration=args.allow_penetration)
+
+
+#: A flat print at least this many times longer (x) than wide (y) is a strip: its mid-line's turn and end gap
+#: are measured in an ensemble (:func:`_ensemble_measure`).
+STRIP_ASPECT = 5.0
+
+
+def _angle_labels(summary):
+    if "fold_angle_rad" in summary:
+        return ["hinge"]
+    if "crease_angles" in summary:
+        return [f"crease {r['edge']}" for r in summary["crease_angles"]]
+    return [f"panels {'-'.join(map(str, r['panels']))}" for r in summary["panel_angles"]]
+
+
+def _ensemble_measure(res):
+    """The fold angles of :func:`_measured` and, of a strip, its mid-line's turn [rad] and end gap [mm], for
+    :func:`gdfe.ensemble.fold_ensemble` (module-level: it travels to the workers)."""
+    import numpy as np
+
+    m = _measured(res, res.design)
+    if "fold_angle_rad" in m:
+        angles = [m["fold_angle_rad"]]
+    else:
+        angles = [r["angle_rad"] for r in m.get("crease_angles", m.get("panel_angles", []))]
+    measures = {}
+    extent = np.ptp(res.design.mesh.points, axis=0)
+    if extent[0] >= STRIP_ASPECT * extent[1]:
+        import gdfe
+        from gdfe.inverse import strip_midline
+
+        _, uv, _ = strip_midline(res)
+        measures = {"turn_rad": float(gdfe.curvature_profile(res)["turn"]),
+                    "end_gap_mm": float(np.linalg.norm(uv[-1] - uv[0]))}
+    return angles, measures
