@@ -19,10 +19,13 @@ and print ``batch``) whether or not its effect uses them. Gaussian noise of stan
 sigma is added (read as magnitudes) and :func:`gdfe.diagnosis.diagnose` is told sigma.
 
 Two rules score a diagnosis. The **strict rule** (:func:`strict_right`): right only if no single
-wrong physical cause is credited (:func:`wrong_physics_credited`: the model named alone, or the
-chosen model of a named set, holds a physical cause that is not among the generator's right
-ones, and it is named alone, or the verdict is ``explained``, or it removes more than half of
-the gap; a measurement artefact or a factor is never a wrong physical cause), no red-herring
+wrong physical cause is credited (:func:`wrong_physics_credited`): a model is credited when it is
+named alone -- the only model of the named set, with no alternative left open (the diagnosis's
+``attribution.not_ruled_out``; one that says an effect outside the catalogue is not ruled out
+names its model beside that effect) -- with the verdict ``explained`` or more than half of the
+gap removed; with several models named and the verdict ``explained``, the effects all of them
+share are credited. A credited physical cause not among the generator's right ones is wrong; a
+measurement artefact or a factor is never a wrong physical cause. Besides, no red-herring
 column named, and right by the package's rule below. The **package's rule** (:func:`is_right`),
 per class:
 
@@ -35,7 +38,10 @@ per class:
 * **null**: the verdict is ``no_gap`` (for the stiff-coat bilayer also ``passive_stiffness`` or
   ``hinge_length`` named);
 * **outside**, **artefact**, **column**, **d_only**: the verdict is not ``explained`` (or the
-  artefact, ``reading_offset``, or the column's factor is named);
+  artefact, ``reading_offset``, or the column's factor is named); ``measurement_issue`` (the gap
+  reproduced by a reading offset alone, an effect outside the catalogue of the same form left
+  open) is not ``explained``, and each summary also counts it as wrong
+  (``accuracy_measurement_wrong``) so that the difference can be seen;
 * **process**, **red_herring**: as the catalogue's (``partial_activation[T_C]``, ``cure_depth``).
 
 Reported: accuracy per class and per generator against sigma (on all data sets, on the
@@ -97,42 +103,42 @@ TABLE1_SIGMAS = (0.03, 0.05, 0.1, 0.15)
 GENERATOR_VERSION = 1
 #: A data set's effect is visible at sigma when its visibility is at least this many sigma.
 VISIBLE = 2.0
-#: Whether each class's accuracy goal is expected to hold at sigma = 0.03 rad, and why not.
-EXPECT = {
-    "catalogue": (False, "goal not met on all data sets: the nonlinear FEM's film thickening changes the folds by "
-                         "less than twice the noise on nearly every data set (below the noise: no method can name "
-                         "it; it alone keeps the class under 0.9), and a few FEM cure depths are below the noise, "
-                         "reproduced by another model within it, or not reproduced by the catalogue's cure_depth "
-                         "within it; on Table 1's single film thickness the d-softening effects are named together "
-                         "(the named set). The misses table gives each miss its reason; compare accuracy_visible "
-                         "and accuracy_tellable"),
-    "column": (False, "goal not met: the panel's sag moves the folds by about the noise (visibility 0.03-0.04 "
-                      "rad at sigma = 0.03; the refitted K takes most of it), so the diagnosis may credit "
-                      "another effect with it; the anisotropic film is named as its column's factor"),
-    "d_only": (False, "goal not met: the heating lag at one film thickness is called explained by a pair of "
-                      "d-softening effects (cure_depth with passive_stiffness or film_thickening), each of which "
-                      "imitates it at one h: by the package's rule an explained verdict is wrong for an effect "
-                      "outside the catalogue"),
-    "outside": (False, "goal not met on all data sets: resin bleeding that grows with the coat changes the folds "
-                       "by less than twice the noise on half of its data sets, and is reproduced within the noise "
-                       "by cure_depth+hinge_length on others (aliased: no method can call those unexplained); on "
-                       "the data sets where it can be told (accuracy_tellable) every out-of-catalogue effect is "
-                       "called not or partly explained"),
+#: Where each class's accuracy goal (>= 0.9 at sigma = 0.03 rad) is expected not to hold, and
+#: why, by resolution (the same for both rules: at sigma = 0.03 rad they agree on every data set
+#: of these runs). A class not listed is expected to meet the goal.
+MISSED = {
+    "catalogue": "goal not met: the nonlinear FEM's film thickening changes the folds by less than twice the noise "
+                 "on 8 of its 12 data sets (below the noise: no method can name it; it alone keeps the class under "
+                 "0.9); two FEM cure depths are not reproduced by the catalogue's cure_depth within the noise, two "
+                 "are reproduced by a reading offset with another effect (aliased), one gains a spurious oven-"
+                 "temperature term. On the visible data sets the class is at 0.90; see accuracy_visible",
+    "column": "goal not met: the panel's sag moves the folds by about the noise (visibility 0.03-0.04 rad at sigma "
+              "= 0.03), and on 2 of 8 data sets another model within the noise takes it (with a reading offset); "
+              "the anisotropic film is named as its column's factor every time",
+    "d_only": "goal not met: on 2 of 8 data sets the heating lag is reproduced within the noise by a plausible "
+              "catalogue model named alone (cure_depth; hinge_length with a reading offset), which no method can "
+              "tell from the lag on these designs",
+    "red_herring": "goal not met: the cure depth beside the herring columns is below the noise once and twice not "
+                   "reproduced by the catalogue's cure_depth within the noise; no herring column is ever named",
 }
-#: Whether each class's goal is expected to hold by the strict rule at sigma = 0.03 rad, and why not.
-EXPECT_STRICT = {
-    "catalogue": (False, "goal not met: as by the package's rule (film thickening below the noise), and the FEM's "
-                         "cure depth on random designs is credited to cure_depth+passive_stiffness, whose "
-                         "passive_stiffness was not built in (the FEM's stiff coat, E_coat/E_film = 100, bends "
-                         "with the film: a pair with the truth, wrong by the strict rule)"),
-    "outside": (False, "goal not met: the fixture stop is credited to saturation alone, overheating to "
-                       "partial_activation[T_C] (the declared oven temperature's monotone activation), resin "
-                       "bleeding to hinge_length or cure_depth (with reading_offset): partly_explained with a "
-                       "physical cause named alone, which the package's rule counts right"),
-    "column": EXPECT["column"] if "column" in EXPECT else (False, ""),
-    "d_only": (False, "goal not met: the heating lag is credited to cure_depth with passive_stiffness or "
-                      "film_thickening, a physical cause not built in"),
-}
+#: The classes of :data:`MISSED` whose goal holds at a resolution all the same (the coarse run has
+#: one or two data sets of each later class).
+HOLDS_AT = {"coarse": ("column", "d_only", "red_herring"), "default": (), "fine": ()}
+#: The outside class at the coarse resolution (16 data sets).
+MISSED_COARSE = {"outside": "goal not met at this resolution: two of 16 out-of-catalogue data sets are resin "
+                            "bleeding reproduced within the noise by hinge_length with a reading offset (once below "
+                            "twice the noise, once named alone)"}
+
+
+def expected(kind, resolution):
+    """``(holds, why_not)``: whether the accuracy goal of class ``kind`` is expected to hold at
+    ``resolution`` (:data:`MISSED`, :data:`HOLDS_AT`, :data:`MISSED_COARSE`)."""
+    if resolution == "coarse" and kind in MISSED_COARSE:
+        return False, MISSED_COARSE[kind]
+    if kind in MISSED and kind not in HOLDS_AT.get(resolution, ()):
+        return False, MISSED[kind]
+    return True, ""
+
 
 #: Limits of the cost measurement: 10,000 rows in 60 s and 1 GiB.
 COST_GOAL = {"rows": 10000, "seconds": 60.0, "rss_mib": 1024.0}
@@ -255,6 +261,8 @@ def is_right(generator, named, verdict):
     ``named``: the models the diagnosis names (its set of indistinguishable models, or one name)."""
     g = _generator(generator)
     named = [named] if isinstance(named, str) else list(named)
+    if verdict == "measurement_issue" and "not_explained" in g.answers:
+        return True  # no physics credited; a reading error or an effect outside the catalogue left open
     return verdict in g.answers or any(n in g.answers for n in named)
 
 
@@ -298,19 +306,30 @@ def model_terms(name, entry=None):
 
 
 def credited_model(diagnosis):
-    """The model a diagnosis (:meth:`gdfe.diagnosis.Diagnosis.as_dict`) credits with the gap, or
-    None: the one model of its named set (or, with several, its chosen model) when that model is
-    named alone, or the verdict is ``explained``, or it removes more than half of the gap."""
+    """What a diagnosis (:meth:`gdfe.diagnosis.Diagnosis.as_dict`) credits with the gap, or None.
+
+    A model is credited when it is *named alone* -- the only model of the named set, with no
+    alternative left open (``attribution.not_ruled_out`` empty: a diagnosis that says an effect
+    outside the catalogue is not ruled out names its model beside that effect) -- *and* the
+    verdict is ``explained`` or the model removes more than half of the gap. With several models
+    named and the verdict ``explained``, the effects every one of them contains are credited
+    (returned joined by ``+``)."""
     named = list(diagnosis.get("named") or [diagnosis["best"]])
-    cand = named[0] if len(named) == 1 else diagnosis["best"]
-    if cand == "baseline":
-        return None
-    entry = next((e for e in diagnosis.get("effects", []) if e.get("name") == cand), {})
-    shrink = entry.get("shrink")
-    if shrink is None and cand == diagnosis["best"]:
-        shrink = diagnosis.get("gap_removed")
-    if len(named) == 1 or diagnosis["verdict"] == "explained" or (shrink is not None and shrink > 0.5):
-        return cand
+    open_ = list((diagnosis.get("attribution") or {}).get("not_ruled_out") or [])
+    explained = diagnosis["verdict"] in ("explained", "measurement_issue")
+    if len(named) == 1 and not open_:
+        cand = named[0]
+        if cand == "baseline":
+            return None
+        entry = next((e for e in diagnosis.get("effects", []) if e.get("name") == cand), {})
+        shrink = entry.get("shrink")
+        if shrink is None and cand == diagnosis["best"]:
+            shrink = diagnosis.get("gap_removed")
+        return cand if explained or (shrink is not None and shrink > 0.5) else None
+    if explained and len(named) > 1:
+        sets = [n.split("+") for n in named if n != "baseline"]
+        common = [t for t in sets[0] if all(t in s for s in sets[1:])] if sets else []
+        return "+".join(common) or None
     return None
 
 
@@ -589,6 +608,9 @@ def summarise(records, sigmas):
                                    "accuracy_strict_tellable": _mean(r.get("correct_strict", r["correct"])
                                                                      for r in told),
                                    "misses_strict": _misses(kr, "miss_strict"),
+                                   "accuracy_measurement_wrong": _mean(
+                                       r.get("correct_strict", r["correct"]) and r["verdict"] != "measurement_issue"
+                                       for r in kr),
                                    "identified": _mean(r.get("identified", False) for r in kr)}
             if k == "catalogue":  # the named set scored right when it holds the answer; the best model alone too
                 entry["classes"][k]["accuracy_best_only"] = _mean(is_right(r["generator"], r["best"], r["verdict"])
@@ -846,14 +868,14 @@ def run(resolution="default", out=None, n_jobs=None, reps=None, sigmas=None, cac
             for k, v in summary[goal]["classes"].items():
                 if not v["n"]:
                     continue
+                holds, why = expected(k, resolution)
                 heads.append(headline(f"accuracy at sigma = {goal} rad, strict rule: {k}", v["accuracy_strict"],
                                       tol=ACCURACY_GOAL, kind="ge",
                                       paper_text="issue 12 goal: >= 0.9 in every class, no wrong physical cause "
-                                                 "credited", expect=EXPECT_STRICT.get(k, (True, ""))[0],
-                                      note=EXPECT_STRICT.get(k, (True, ""))[1]))
+                                                 "credited", expect=holds, note=why))
                 heads.append(headline(f"accuracy at sigma = {goal} rad: {k}", v["accuracy"], tol=ACCURACY_GOAL,
                                       kind="ge", paper_text="issue 12 goal: >= 0.9 in every class",
-                                      expect=EXPECT.get(k, (True, ""))[0], note=EXPECT.get(k, (True, ""))[1]))
+                                      expect=holds, note=why))
             heads.append(headline("share of null or out-of-catalogue data sets", summary[goal]["share_null_or_outside"],
                                   tol=0.4, kind="ge", paper_text="issue 12: >= 40 %"))
     if "table1" in parts:

@@ -176,16 +176,28 @@ def _diag(named, verdict, best=None, effects=()):
 
 
 def test_strict_rule_on_hand_made_diagnoses():
-    """A wrong physical cause named alone is wrong; a measurement artefact or a factor is never a
-    wrong physical cause; a wrong cause inside a named set of several, partly explained and removing
-    less than half of the gap, is not credited."""
-    alone = _diag(["cure_depth"], "partly_explained", effects=[{"name": "cure_depth", "shrink": 0.3}])
+    """A wrong physical cause named alone, with ``explained`` or more than half of the gap, is
+    wrong; named alone with less, or beside an alternative the diagnosis leaves open, it is not
+    credited; a measurement artefact or a factor is never a wrong physical cause; on an explained
+    verdict with several models named, the effects they share are credited."""
+    alone = _diag(["cure_depth"], "explained", effects=[{"name": "cure_depth", "shrink": 0.9}])
     assert bd.wrong_physics_credited(alone) == "cure_depth"
     assert bd.wrong_physics_credited(alone, ["cure_depth"]) is None
-    assert not bd.strict_right("heating_lag", alone) and bd.is_right("heating_lag", ["cure_depth"], "partly_explained")
+    assert not bd.strict_right("heating_lag", alone)
+    most = _diag(["cure_depth"], "partly_explained", effects=[{"name": "cure_depth", "shrink": 0.6}])
+    assert bd.wrong_physics_credited(most) == "cure_depth"
+    assert not bd.strict_right("heating_lag", most) and bd.is_right("heating_lag", ["cure_depth"], "partly_explained")
+    little = _diag(["cure_depth"], "partly_explained", effects=[{"name": "cure_depth", "shrink": 0.3}])
+    assert bd.wrong_physics_credited(little) is None and bd.strict_right("heating_lag", little)
+    left_open = {**most, "attribution": {"not_ruled_out": ["outside_catalogue"]}}
+    assert bd.credited_model(left_open) is None and bd.strict_right("heating_lag", left_open)
     offset = _diag(["reading_offset"], "explained", effects=[{"name": "reading_offset", "shrink": 0.9}])
     assert bd.wrong_physics_credited(offset) is None and bd.strict_right("reading_offset", offset)
     assert bd.identified(offset)
+    # a measurement issue is not an explained verdict for an effect outside the catalogue
+    issue = {**offset, "verdict": "measurement_issue"}
+    assert bd.is_right("coat_bleed", issue["named"], "measurement_issue") and bd.strict_right("coat_bleed", issue)
+    assert not bd.is_right("cure_depth", issue["named"], "measurement_issue")
     # the kind the diagnosis gives wins over the name
     told = _diag(["oddity"], "explained", effects=[{"name": "oddity", "effects": ["oddity"],
                                                       "effect_kinds": ["measurement"], "shrink": 0.9}])
@@ -197,12 +209,13 @@ def test_strict_rule_on_hand_made_diagnoses():
     assert not bd.strict_right("anisotropic_film", undeclared)
     assert bd.is_right("anisotropic_film", undeclared["named"], "partly_explained")
     several = _diag(["saturation", "cure_depth"], "partly_explained",
-                    effects=[{"name": "saturation", "shrink": 0.4}, {"name": "cure_depth", "shrink": 0.35}])
+                    effects=[{"name": "saturation", "shrink": 0.7}, {"name": "cure_depth", "shrink": 0.65}])
     assert bd.credited_model(several) is None and bd.wrong_physics_credited(several) is None
     assert bd.strict_right("hard_cap", several)
-    # the same set, explained (or removing more than half of the gap): its chosen model is credited
-    assert bd.wrong_physics_credited({**several, "verdict": "explained"}) == "saturation"
-    assert bd.wrong_physics_credited({**several, "effects": [{"name": "saturation", "shrink": 0.7}]}) == "saturation"
+    # explained with several named: what they share is credited, nothing when they share nothing
+    assert bd.wrong_physics_credited({**several, "verdict": "explained"}) is None
+    shared = _diag(["saturation", "saturation+cure_depth"], "explained")
+    assert bd.wrong_physics_credited(shared) == "saturation" and not bd.strict_right("hard_cap", shared)
     # the right cause with a red herring's column named beside it
     herring = _diag(["cure_depth", "partial_activation[humidity_pct]"], "explained",
                     effects=[{"name": "cure_depth", "shrink": 0.8}])

@@ -99,7 +99,24 @@ def test_noise_growing_with_the_angle_is_detected_and_weighted():
     diag = diagnose(_tests(measured, L, d, h), sigma=SIGMA, pairs=False)
     grow = diag.as_dict()["artefacts"]["growing_noise"]
     assert grow["detected"] and grow["weighted"] and grow["rho"] > 0
-    assert "1/alpha^2" in diag.verdict.text
+    assert "1/sigma_i^2" in diag.verdict.text and "times larger at the largest fold" in diag.verdict.text
+
+
+def test_variance_function_of_the_growing_noise():
+    """The weights of a growing noise come from the residuals: noise proportional to the angle
+    gives weights that follow it; a constant noise (a growth detected by chance) gives weights
+    close to uniform, so that small folds do not earn weights they do not have."""
+    from gdfe.diagnosis.artefacts import relative_noise
+
+    rng = np.random.default_rng(11)
+    p = np.linspace(0.2, 3.0, 400)
+    proportional = relative_noise(p, 0.05 * p * rng.standard_normal(p.size))
+    constant = relative_noise(p, 0.05 * rng.standard_normal(p.size))
+    for rel in (proportional, constant):
+        assert np.isclose(np.mean(rel**2), 1.0)
+    ratio = proportional[-1] / proportional[0]
+    assert 3.0 < ratio < 15.0, ratio  # below p's own ratio, 3.0 / 0.2: the constant part is floored
+    assert constant[-1] / constant[0] < 1.6, constant[-1] / constant[0]
 
 
 def test_failed_specimen_flagged():
@@ -123,3 +140,50 @@ def test_every_effect_has_a_kind_in_the_json():
     for e in out["effects"]:
         assert len(e["effect_kinds"]) == len(e["effects"]) and isinstance(e["plausible"], bool)
     assert all(EFFECTS[e].kind for e in EFFECTS)
+
+
+def test_attribution_credits_only_a_model_the_data_prove():
+    """The attribution's rules, one verdict at a time."""
+    from gdfe.diagnosis.attribution import OUTSIDE, attribute
+
+    kinds = {"cure_depth": [("cure_depth", "physics")],
+             "cure_depth+hinge_length": [("cure_depth", "physics"), ("hinge_length", "physics")],
+             "cure_depth+reading_offset": [("cure_depth", "physics"), ("reading_offset", "measurement")],
+             "saturation": [("saturation", "physics")], "reading_offset": [("reading_offset", "measurement")]}
+    alone = attribute("explained", "cure_depth", ["cure_depth"], kinds)
+    assert alone.credited == "cure_depth" and alone.kind == "physics" and not alone.not_ruled_out
+    shared = attribute("explained", "cure_depth", ["cure_depth", "cure_depth+hinge_length"], kinds)
+    assert shared.credited is None and shared.effects == ["cure_depth"] and "cure_depth+hinge_length" in shared.not_ruled_out
+    apart = attribute("explained", "saturation", ["saturation", "reading_offset"], kinds)
+    assert apart.credited is None and apart.effects == [] and "share no effect" in apart.text
+    offset = attribute("explained", "reading_offset", ["reading_offset"], kinds)
+    assert offset.kind == "measurement" and "not physics" in offset.text
+    for verdict in ("partly_explained", "not_explained", "structure_remains"):
+        a = attribute(verdict, "saturation", ["saturation"], kinds, why_open="structure remains after it")
+        assert a.credited is None and OUTSIDE in a.not_ruled_out and "structure remains" in a.text
+    none = attribute("no_gap", "baseline", ["baseline"], {})
+    assert none.credited is None and none.not_ruled_out == []
+
+
+def test_table1_credits_no_cause():
+    """Table 1 fits only with implausible parameters: nothing is credited, and an effect outside
+    the catalogue is among what the data leave open, in the JSON and in the verdict's text."""
+    diag = diagnose(paper.TABLE1)
+    att = diag.as_dict()["attribution"]
+    assert att["credited"] is None and "outside_catalogue" in att["not_ruled_out"]
+    assert "No cause is credited" in diag.verdict.text and "an effect outside the catalogue" in diag.verdict.text
+
+
+def test_clean_catalogue_effect_is_credited_alone():
+    """A cure depth built into Eq. 1 (the coat acting thicker by 0.05 mm) at two film
+    thicknesses, with small noise: the diagnosis credits cure_depth and nothing else."""
+    L, d, h, _ = _design()
+    L, d, h = np.tile(L, 2), np.tile(d, 2), np.concatenate([h, h / 2])
+    alpha = paper.K * np.sqrt(h / (d + 0.05) ** 3) * L / 4.0
+    rng = np.random.default_rng(5)
+    measured = alpha + rng.normal(0.0, 0.01, alpha.size)
+    diag = diagnose(_tests(measured, L, d, h), sigma=0.01, pairs=False)
+    att = diag.as_dict()["attribution"]
+    assert diag.verdict.verdict == "explained", diag.verdict.text
+    assert att["credited"] == "cure_depth" or att["effects"] == ["cure_depth"], att
+    assert "Credited: cure_depth" in diag.verdict.text

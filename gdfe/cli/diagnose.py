@@ -19,7 +19,7 @@ def register(sub):
         "diagnose", help="where folding tests and the calibrated GDFE hinge part ways, and why",
         description="Fit the calibrated GDFE hinge (Eq. 1-3) to folding tests, locate its residuals, "
                     "rank a catalogue of physical effects by held-out error, and give a verdict against "
-                    "the noise: no_gap, explained, partly_explained, not_explained or structure_remains. A numeric "
+                    "the noise: no_gap, explained, measurement_issue, partly_explained, not_explained or structure_remains. A numeric "
                     "extra column the folds follow is a factor (factor[COL]) unless --role declares it a "
                     "process variable (then partial_activation[COL]); text columns with repeated labels are "
                     "groups (leave-one-group-out; factor[COL], or batch[COL] for a declared group role); "
@@ -118,8 +118,6 @@ def _diagnose(args, folder):
 
 def _save_model(diag, args):
     """The chosen (or ``--effect``) fit as a deformation model file; returns (path, text)."""
-    import gdfe
-
     fits = [diag.baseline] + list(diag.fits)
     if args.effect is None:
         fit = diag.best
@@ -133,12 +131,14 @@ def _save_model(diag, args):
     if not fit.model.effects and diag.baseline_name != "eq1":
         raise GdfeError(f"--model-out: the {diag.baseline_name} baseline is not a deformation model of the GDFE hinge; "
                         f"save a model of the catalogue (--effect NAME), or calibrate the reading with gdfe calibrate")
-    model = gdfe.DeformationModel.from_effect_fit(fit, data=args.data, n_tests=len(diag.tests),
-                                                  held_out=diag.held_out if fit.held_out_rmse(diag.held_out) is not None
-                                                  else "loo")
+    from gdfe.predictive import from_diagnosis
+
+    model = from_diagnosis(diag, fit, data=args.data)
     model.save(args.model_out)
-    text = f"wrote {args.model_out} (deformation model {model.name!r})" + "".join(
-        f"\nWARNING: {w}" for w in model.warnings)
+    members = "".join(f"\n  {m.model.name}: weight {m.weight:.3f}" for m in model.ensemble)
+    text = (f"wrote {args.model_out} (deformation model {model.name!r}, with its parameters' covariance and noise"
+            + (f"; the named set weighted by {model.weighting} of held-out densities:{members}" if members else "")
+            + "; gdfe predict reads it)") + "".join(f"\nWARNING: {w}" for w in model.warnings)
     return str(args.model_out), text
 
 

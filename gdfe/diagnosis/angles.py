@@ -60,6 +60,7 @@ import numpy as np
 
 from gdfe._validation import GdfeError, GdfeTypeError, check_choice, is_finite_number
 from gdfe.calibration import FoldingTests, load_folding_tests
+from gdfe.diagnosis.attribution import attribute
 from gdfe.diagnosis.artefacts import screen as screen_artefacts
 from gdfe.diagnosis.artefacts import with_relative_noise
 from gdfe.diagnosis.baselines import BASELINES, DESCRIPTIONS, baseline_model, form_shares
@@ -361,6 +362,26 @@ class Diagnosis:
         """The kind of each effect of ``fit`` (:meth:`gdfe.diagnosis.columns.ColumnRoles.effect_kinds`)."""
         return self.columns.roles.effect_kinds(fit.model)
 
+    def term_kinds(self, fit):
+        """``[(term, kind)]`` of ``fit``: each term of its reported name (``"cure_depth"``,
+        ``"factor[T_C]"``) with its kind (:meth:`effect_kinds`)."""
+        return list(zip(self.display(fit).split("+"), self.effect_kinds(fit))) if fit.model.effects else []
+
+    def attribution(self):
+        """The cause the diagnosis credits, or the alternatives it leaves open
+        (:func:`gdfe.diagnosis.attribution.attribute`)."""
+        why = []
+        if self.best.model.effects and not getattr(self.best, "plausible", True):
+            why.append("it fits only with implausible parameters")
+        if self.best.model.effects and (self.lack_of_fit or {}).get("best", {}).get("within") is False:
+            why.append("what it leaves is above the noise")
+        if self.structure_best:
+            why.append("structure remains after it")
+        named = self.named or [self.best]
+        return attribute(self.verdict.verdict, self.display(self.best), [self.display(f) for f in named],
+                         {self.display(f): self.term_kinds(f) for f in [self.best, *named]},
+                         why_open=" and ".join(why) or None)
+
     def credit(self, fit):
         """What each column effect of ``fit`` says, and whether its column is confounded."""
         out = []
@@ -465,6 +486,7 @@ class Diagnosis:
             "effects": effects,
             "best": self.best.name,
             "named": [f.name for f in self.named] or [self.best.name],
+            "attribution": self.attribution().as_dict(),
             "separation": self.separation,
             "selected": self.selected.name,
             "best_detail": {**entry(self.best), "where": self.where_best, "regime": self.regime_best},
@@ -624,7 +646,8 @@ def diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=N
     screen : bool
         Look for measurement artefacts (failed specimens, gross outliers, noise growing with
         the angle; :func:`gdfe.diagnosis.artefacts.screen`), repeating the diagnosis without
-        flagged rows and, when the noise grows with the angle, weighted by ``1 / alpha^2``.
+        flagged rows and, when the noise grows with the angle, weighted by the noise each test's
+        angle implies (:func:`gdfe.diagnosis.artefacts.relative_noise`).
     relative_sigma : (n,) float array, optional
         Each test's noise relative to the RMS noise (mean square 1): weights
         ``1 / relative_sigma^2`` (set by the screen).
@@ -654,8 +677,42 @@ def diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=N
         non-finite value (naming its rows), a role that is not in the registry, negative
         angles without ``signed`` (naming their rows).
     """
+    diag = _diagnose(tests, group=group, sigma=sigma, process=process, pairs=pairs, check=check, models=models,
+                     roles=roles, baseline=baseline, signed=signed, screen=screen, relative_sigma=relative_sigma)
+    said = diag.attribution().text
+    diag.verdict = dataclasses.replace(diag.verdict, text=diag.verdict.text.rstrip() + " " + said[0].upper() + said[1:]
+                                       + ".")
+    return diag
+
+
+#: The diagnosis's time against its number of tests, ``seconds = t0 (n / n0) ** p``, to say before a long
+#: one starts: t0 at n0 = 10^4 rows from docs/diagnosis.md (its cost at 10,000 rows), p from it and
+#: 2 000 rows of the same generator (12 s on 2 loaded cores; 500 rows 7.7 s, where fixed costs weigh).
+_ROWS_AT, _SECONDS_AT_ROWS, _ROWS_EXPONENT = 1e4, 49.0, 0.87
+
+
+def _read_tests(path):
+    """Read the CSV of folding tests to diagnose: degenerate data refused or named, a long run announced."""
+    from pathlib import Path
+
+    from gdfe._validation import degenerate_tests
+    from gdfe.resources import check_work
+
+    tests = load_folding_tests(path)
+    name = Path(path).name
+    for note in degenerate_tests(name, tests.L, tests.d, tests.h, tests.alpha, single_point_is_error=True):
+        log.warning("%s", note)
+    n = len(tests)
+    seconds = _SECONDS_AT_ROWS * (n / _ROWS_AT) ** _ROWS_EXPONENT
+    check_work(name, 0.0, f"a diagnosis of {n:,} folding tests", "", seconds=seconds, logger=log)
+    return tests
+
+
+def _diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=None, models=None, roles=None,
+             baseline="eq1", signed=False, screen=True, relative_sigma=None):
+    """:func:`diagnose` without the attribution sentence (the screen's reruns call it)."""
     if not isinstance(tests, FoldingTests):
-        tests = load_folding_tests(tests)
+        tests = _read_tests(tests)
     n = len(tests)
     if n < 5:
         raise GdfeError(f"tests: need at least 5 folding tests to fit and hold out, got {n}")
@@ -690,14 +747,7 @@ def diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=N
     base = fit(baseline_model(baseline))
     if models is None:
         models = catalogue(pairs, process=list(cols.process))
-    fits = []
-    for m in models:
-        if not m.effects or (baseline == "timoshenko" and m.effects == ("passive_stiffness",)):
-            continue  # the baseline itself
-        if n - 1 <= m.n_params + 1:
-            log.info("%s: %d parameters need more than %d tests; skipped", m.name, m.n_params, n)
-            continue
-        fits.append(fit(m))
+    fits = [fit(m) for m in _fittable(models, baseline, n)]
     mark_equal([base] + fits, alpha)
     selected, cands = select([base] + fits, alpha, kind, weights=weights)
     selected, batch_fits = _batch_step(selected, fits, cols, fit, alpha, weights, n)
@@ -775,30 +825,52 @@ def diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=N
     if signed:
         diag.warnings.append("angles read as signed (--signed): the diagnosis uses their magnitudes |alpha|")
     if check:
-        from gdfe.diagnosis.forward import gdfe_check
-
-        idx = _check_subset(base.predicted)
-
-        def sub(f):
-            x = cols.process[f.model.process][idx] if f.model.process else None
-            g = f.model.group_index(cols.groups[f.model.group])[idx] if f.model.group else None
-            c = gdfe_check(f.model, f.params, L[idx], d[idx], h[idx], x=x, group=g, resolution=check)
-            c["n_tests"] = int(idx.size)
-            return c
-
-        # a baseline form other than Eq. 1 has no GDFE hinge of its own to check
-        diag.check = {"baseline": sub(base)} if isinstance(base.model, Model) else {}
-        if best is not base and isinstance(best.model, Model):
-            diag.check["best"] = sub(best)
+        diag.check = _gdfe_check(diag, check)
         if not all(c["converged"] for c in diag.check.values()):
             diag.warnings.append("a GDFE solve of the check did not converge: its difference to the closed "
                                  "form is not a discretisation error")
     if screen:  # measurement artefacts: failed specimens, outliers, noise growing with the angle
-        diag = screen_artefacts(diag, lambda t, relative_sigma=None, main=False: diagnose(
+        diag = screen_artefacts(diag, lambda t, relative_sigma=None, main=False: _diagnose(
             t, group=group, sigma=sigma, process=process, pairs=pairs, check=check if main else None, models=models,
             roles=roles, baseline=baseline, signed=signed, screen=False, relative_sigma=relative_sigma))
     diag.verdict = dataclasses.replace(diag.verdict, text=rename(diag.verdict.text, diag.renames))
     return diag
+
+
+def _fittable(models, baseline, n):
+    """The models of ``models`` to fit besides the baseline: not the baseline itself, and with
+    enough tests (``n``) to fit and hold out their parameters."""
+    out = []
+    for m in models:
+        if not m.effects or (baseline == "timoshenko" and m.effects == ("passive_stiffness",)):
+            continue  # the baseline itself
+        if n - 1 <= m.n_params + 1:
+            log.info("%s: %d parameters need more than %d tests; skipped", m.name, m.n_params, n)
+            continue
+        out.append(m)
+    return out
+
+
+def _gdfe_check(diag, resolution):
+    """GDFE solves of (at most :data:`CHECK_TESTS` of) the tests against the closed forms of the
+    baseline and the chosen model (:func:`gdfe.diagnosis.forward.gdfe_check`)."""
+    from gdfe.diagnosis.forward import gdfe_check
+
+    t, cols, base, best = diag.tests, diag.columns, diag.baseline, diag.best
+    idx = _check_subset(base.predicted)
+
+    def sub(f):
+        x = cols.process[f.model.process][idx] if f.model.process else None
+        g = f.model.group_index(cols.groups[f.model.group])[idx] if f.model.group else None
+        c = gdfe_check(f.model, f.params, t.L[idx], t.d[idx], t.h[idx], x=x, group=g, resolution=resolution)
+        c["n_tests"] = int(idx.size)
+        return c
+
+    # a baseline form other than Eq. 1 has no GDFE hinge of its own to check
+    out = {"baseline": sub(base)} if isinstance(base.model, Model) else {}
+    if best is not base and isinstance(best.model, Model):
+        out["best"] = sub(best)
+    return out
 
 
 #: Standard deviations of the noise within which a negative angle is read as the noise of a small fold.
@@ -902,10 +974,18 @@ def _amend(verdict, *, base, best, named, cols, conf, trends, structure_any, n, 
 
 def _batch_step(best, fits, cols, fit, alpha, weights, n):
     """Add a batch effect on a group column to the chosen model when it lowers the
-    leave-one-out error significantly; then drop any other effect it makes unnecessary."""
+    leave-one-out error significantly; then drop any other effect it makes unnecessary.
+
+    The batch effect alone (on the baseline) is fitted for every group column too, whatever
+    is chosen, so that the later steps (a model within the noise, the named set) can weigh it
+    against the chosen model with its effects."""
     tried = []
     if not cols.groups or "batch" in best.model.effects:
         return best, tried
+    for col, labels in cols.groups.items():
+        m = Model(("batch",), group=col, labels=np.unique(labels))
+        if n - 1 > m.n_params + 1 and m != best.model:
+            tried.append(next((g for g in fits if g.model == m), None) or fit(m))
     found = None
     for col, labels in cols.groups.items():
         m = best.model.with_effect("batch", group=col, labels=np.unique(labels))

@@ -18,10 +18,11 @@ then repeated without the flagged rows, and the verdict is given with and withou
 **Noise that grows with the angle**: the magnitude of the robust residuals against the
 predicted angle, Spearman's rank correlation (one-sided, larger residuals at larger angles),
 significant at :data:`gdfe.diagnosis.verdict.LEVEL`. When found (and the tests carry no
-``sigma_rad`` column of their own), the diagnosis is repeated with each test's noise
-proportional to its predicted angle, ``sigma_i = s |p_i| / rms|p|`` (``s`` the noise's RMS,
-``|p_i|`` floored at :data:`NEAR_ZERO`), i.e. fits and held-out errors weighted by
-``1 / alpha^2``, and that weighted diagnosis is the one reported.
+``sigma_rad`` column of their own), the diagnosis is repeated with each test's noise growing
+with its predicted angle as the residuals say, ``sigma_i = s (a + b |p_i|) / rms`` (``s`` the
+noise's RMS; ``a, b`` a variance function fitted to the robust residuals, the constant part
+``a`` at least :data:`MIN_CONSTANT` of the mean; :func:`relative_noise`), i.e. fits and
+held-out errors weighted by ``1 / sigma_i^2``, and that weighted diagnosis is the one reported.
 
 Angles in radians.
 """
@@ -42,6 +43,8 @@ __all__ = ["Artefacts", "screen", "failed_specimens", "growing_noise", "NEAR_ZER
 NEAR_ZERO = 0.05
 #: Robust residuals beyond this many noise units are gross outliers.
 OUTLIER_Z = 4.0
+#: Least constant part of a growing noise, as a share of its mean (:func:`relative_noise`).
+MIN_CONSTANT = 0.2
 #: Fewest tests a repeat without flagged rows needs.
 MIN_TESTS = 5
 
@@ -64,7 +67,7 @@ class Artefacts:
         The noise unit of the outlier test (RMS over the tests).
     growing : dict
         ``detected``, ``rho``, ``p`` (Spearman of |residual| against the predicted angle),
-        ``weighted`` (whether the reported diagnosis is weighted by ``1 / alpha^2``), ``text``.
+        ``weighted`` (whether the reported diagnosis is weighted by a noise growing with the angle), ``text``.
     without : dict or None
         The diagnosis without the flagged rows: ``rows``, ``verdict``, ``text``, ``best``,
         ``named``; None when no row is flagged (or too few would remain).
@@ -136,11 +139,28 @@ def growing_noise(residuals, predicted, level=LEVEL):
     return {"detected": found, "rho": float(rho), "p": pv, "weighted": False, "text": text}
 
 
-def relative_noise(predicted):
-    """Noise of each test relative to the RMS, proportional to ``|predicted|`` (floored at
-    :data:`NEAR_ZERO`): ``(n,)`` with a mean square of 1."""
+def relative_noise(predicted, residuals=None):
+    """Noise of each test relative to the RMS: ``(n,)`` with a mean square of 1.
+
+    With ``residuals``, the noise's growth is estimated from them (a variance function,
+    ``sigma_i = a + b |p_i|`` with ``a, b >= 0`` fitted by non-negative least squares to
+    ``sqrt(pi / 2) |r_i|``, whose mean is ``sigma_i`` for Gaussian noise), so that a constant
+    part of the noise keeps the small folds from weights they do not earn; ``a`` is held at
+    :data:`MIN_CONSTANT` of the mean noise or more. Without, proportional to ``|p_i|``.
+    ``|p_i|`` is floored at :data:`NEAR_ZERO`."""
+    from scipy.optimize import nnls
+
     p = np.maximum(np.abs(np.asarray(predicted, float)), NEAR_ZERO)
-    return p / np.sqrt(np.mean(p**2))
+    if residuals is None:
+        s = p
+    else:
+        r = np.sqrt(np.pi / 2) * np.abs(np.asarray(residuals, float))
+        (a, b), _ = nnls(np.column_stack([np.ones_like(p), p]), r)
+        mean = a + b * float(np.mean(p))
+        if mean <= 0:
+            return np.ones_like(p)
+        s = np.maximum(a, MIN_CONSTANT * mean) + b * p
+    return s / np.sqrt(np.mean(s**2))
 
 
 def subset(tests, keep):
@@ -193,7 +213,7 @@ def screen(diag, rerun):
     growing = growing_noise(res, pred)
     rel = None
     if growing["detected"] and not own_sigma:
-        rel = relative_noise(pred)
+        rel = relative_noise(pred, res)
         params, res, scale = robust(rel)
     failed = failed_specimens(t.alpha)
     outliers = [int(i) + 2 for i in np.nonzero(np.abs(res) > OUTLIER_Z * scale)[0]]
@@ -201,8 +221,11 @@ def screen(diag, rerun):
     if rel is not None:
         out = rerun(t, relative_sigma=rel, main=True)
         growing["weighted"] = True
-        growing["text"] += ("; fits, held-out errors and the lack-of-fit test weighted by 1/alpha^2 (each test's "
-                            "noise proportional to its predicted angle)")
+        lo, hi = int(np.argmin(np.abs(pred))), int(np.argmax(np.abs(pred)))
+        growing["text"] += (f"; fits, held-out errors and the lack-of-fit test weighted by 1/sigma_i^2, each test's "
+                            f"noise sigma_i = a + b |alpha| fitted to the residuals ({rel[hi] / rel[lo]:.1f} times "
+                            f"larger at the largest fold, {abs(pred[hi]):.2f} rad, than at the smallest, "
+                            f"{abs(pred[lo]):.2f} rad)")
     elif growing["detected"]:
         growing["text"] += "; the tests' own sigma_rad column weights them"
     art = Artefacts(failed=failed, outliers=outliers, model=best.name,

@@ -416,8 +416,9 @@ class Model:
             Standard errors of the parameters: a parameter is then implausible only when it
             lies outside its range by more than one standard error (the one-standard-error
             rule by which the diagnosis names an effect at all; a true value on the edge of
-            its range is not flagged half the time); an infinite one counts as unknown, and
-            the value alone decides.
+            its range is not flagged half the time); an infinite one, or one as large as the
+            value itself (the data do not pin the parameter down), counts as unknown, and the
+            value alone decides.
 
         Returns
         -------
@@ -441,7 +442,7 @@ class Model:
                 context = (f"|delta| = {abs(v):.3g} mm is more than {k} of the {d.size} coats tested are thick"
                            if k else "")
             found = check(name, v, context)
-            if found is not None and np.isfinite(s):
+            if found is not None and np.isfinite(s) and s < abs(v):
                 r = range_of(name)
                 if not (v + s < r.lo or v - s > r.hi):
                     continue  # within one standard error of the range

@@ -33,6 +33,11 @@ against every input, the predicted angle and every group column):
     the baseline is within the noise and its residuals show no structure;
 ``explained``
     there is a gap, and the chosen model is within the noise with no structure left;
+``measurement_issue``
+    as ``explained``, but every effect of the chosen model is a measurement artefact (a
+    reading offset): the gap is what a reading error makes, not physics the model can carry
+    to other parts; check the reading -- if it is right, an effect outside the catalogue of
+    the same form is not ruled out;
 ``partly_explained``
     the chosen model removes a meaningful part of the gap, but what remains is above the
     noise or shows structure (named);
@@ -77,7 +82,7 @@ LEVEL = 0.01
 #: Part of the baseline's gap a model must remove for the removal to count.
 MEANINGFUL = 0.5
 #: The verdicts, in order.
-VERDICTS = ("no_gap", "explained", "partly_explained", "not_explained", "structure_remains")
+VERDICTS = ("no_gap", "explained", "measurement_issue", "partly_explained", "not_explained", "structure_remains")
 
 
 @dataclasses.dataclass
@@ -324,7 +329,14 @@ def decide(*, best_name, best_is_baseline, lof_base, lof_best, structure_base, s
         if not v.text.endswith("."):
             v.text += "."
     measured = [e for e, k in zip(effects or (), kinds or ()) if k == "measurement"]
-    if measured and v.verdict in ("explained", "partly_explained"):
+    if measured and len(measured) == len(effects) and v.verdict == "explained" and not implausible:
+        v.verdict = "measurement_issue"
+        v.text = ("a measurement issue: " + v.text.replace("explained by", "reproduced by", 1)
+                  + f". {', '.join(measured)} is a reading error, not physics: the parts may have folded as "
+                    "Eq. 1 says and been read otherwise, and a model of the physics carries nothing of it to other "
+                    "parts; check the reading. If the reading is right, an effect outside the catalogue that "
+                    "shifts the folds the same way is not ruled out.")
+    elif measured and v.verdict in ("explained", "partly_explained"):
         v.text += (f" {', '.join(measured)} is a measurement issue, not physics: the parts may have folded as "
                    "modelled and been read otherwise; check the reading before changing the model.")
     if implausible and not best_is_baseline and v.verdict in ("explained", "partly_explained"):
