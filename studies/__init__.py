@@ -33,6 +33,9 @@ STUDIES = {
     "stopping": "studies.stopping",
     "contact": "studies.contact",
     "inverse2d": "studies.inverse2d",
+    "compare-shapes": "studies.compare_shapes",
+    "uncertainty": "studies.uncertainty",
+    "plan": "studies.plan",
 }
 
 

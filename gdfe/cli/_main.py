@@ -36,12 +36,12 @@ import sys
 import traceback
 
 from gdfe._validation import GdfeError
-from gdfe.cli import bench, calibrate, data, design, diagnose, fem, hinge, report, simulate, study, view
+from gdfe.cli import bench, calibrate, data, design, diagnose, fem, hinge, plan, predict, report, simulate, study, view
 
 __all__ = ["main", "build_parser", "SUBCOMMANDS"]
 
 #: The modules of the subcommands, in the order of ``gdfe --help``.
-SUBCOMMANDS = (hinge, simulate, design, view, fem, study, report, calibrate, diagnose, data, bench)
+SUBCOMMANDS = (hinge, simulate, design, view, fem, study, report, calibrate, diagnose, predict, plan, data, bench)
 
 #: Where bugs are reported.
 ISSUES = "the project's issue tracker"
@@ -227,13 +227,18 @@ def _dispatch(args, options=None):
     """Run the subcommand; turn user errors, Ctrl-C and a closed pipe into an exit status (and, with
     ``--json``, a JSON error object)."""
     target = getattr(args, "json", None) or getattr(args, "json_out", None)
+    from gdfe.parallel import stopping_workers
+
     try:
-        return int(args.func(args) or 0)
+        with stopping_workers():  # SIGTERM and Ctrl-C stop the worker processes too
+            return int(args.func(args) or 0)
     except KeyboardInterrupt as exc:
         left = "; ".join(getattr(exc, "gdfe_left", [])) or "no output folder was being written"
-        print(f"{_name(args)}: interrupted: {left}", file=sys.stderr)
-        _emit_error(target, "interrupted", f"interrupted: {left}", 130)
-        return 130
+        status = 128 + getattr(exc, "signum", 2)  # 130 for Ctrl-C, 143 for SIGTERM
+        how = "interrupted" if status == 130 else f"stopped by signal {status - 128}"
+        print(f"{_name(args)}: {how}: {left}", file=sys.stderr)
+        _emit_error(target, "interrupted", f"{how}: {left}", status)
+        return status
     except BrokenPipeError:  # the reader of our output went away (gdfe ... | head): stop quietly
         import os
 
