@@ -42,7 +42,7 @@ import numpy as np
 
 from gdfe import paper
 from gdfe._validation import (LENGTH_RANGE, GdfeError, check_array, check_choice, check_file, check_int, check_number,
-                              check_positive, check_ratio, read_text)
+                              check_positive, check_ratio, degenerate_tests, read_text)
 
 log = logging.getLogger(__name__)
 
@@ -369,6 +369,7 @@ def fit_reading(tests, model="eq1", n_boot=2000, seed=0):
     if not isinstance(tests, FoldingTests):
         tests = load_folding_tests(tests)
     L, d, h, y = tests.L, tests.d, tests.h, tests.alpha
+    degenerate_tests("tests", L, d, h, y, same_angles=False)  # refuses what no fit can use
     n = y.size
     need = 3 if model == "power" else 2
     if n < need:

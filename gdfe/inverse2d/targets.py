@@ -529,6 +529,9 @@ def mesh_target(V, T, size, name="mesh", source=""):
 
 def load_target(path, size):
     """A :class:`Target` from an OBJ, STL or PLY triangle mesh [mm] and the film's size [mm]."""
+    from gdfe._validation import check_surface_mesh
+
     path = Path(path)
     V, T = read_triangle_mesh(path)
+    check_surface_mesh(f"target {path.name}", V, T)
     return mesh_target(V, T, size, name=path.stem, source=str(path))
