@@ -297,3 +297,7 @@ def _neohookean_chunk(dphi, w, F, lam, mu, g, jst, tangent):
     for i in range(3):
         K[:, :, i, :, i] += Kd
     return energy, P, K.reshape(c, n, n)
+
+
+#: The hyperelastic laws by name: ``state(disc, u, lam, mu, G, tangent=...)`` of each.
+STATES = {"svk": svk_state, "neohookean": neohookean_state}

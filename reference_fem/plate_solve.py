@@ -36,7 +36,7 @@ import scipy.sparse as sp
 
 from gdfe import _validation as v
 from gdfe._validation import GdfeTypeError
-from ._kernel import Discretisation, linear_system, neohookean_state, svk_state
+from ._kernel import STATES, Discretisation, linear_system
 from .linear_solvers import LinearCost, make_solver
 from .material import BilayerMaterial
 from .mesh import FILM
@@ -49,7 +49,6 @@ log = logging.getLogger(__name__)
 SUPPORTS = ("free", "clamped")
 #: A factorisation is reused while each iteration cuts the residual at least this much (``reuse=True``).
 REUSE_RATE = 0.25
-_STATES = {"svk": svk_state, "neohookean": neohookean_state}
 
 
 @dataclasses.dataclass
@@ -224,7 +223,7 @@ def solve_plate(plate: Plate, material: BilayerMaterial | None = None, *, elemen
     max_iter = v.check_int("max_iter", max_iter)
     easy_iter = v.check_int("easy_iter", easy_iter)
     min_step = v.check_positive("min_step", min_step)
-    v.check_choice("model", model, set(_STATES))
+    v.check_choice("model", model, set(STATES))
     t_start = time.perf_counter()
     clock = {"setup_s": 0.0, "assembly_s": 0.0, "assemblies": 0, "residual_s": 0.0, "residuals": 0}
     t0 = time.perf_counter()
@@ -251,7 +250,7 @@ def solve_plate(plate: Plate, material: BilayerMaterial | None = None, *, elemen
 
     def state(u, G, tangent):
         t = time.perf_counter()
-        out = _STATES[model](disc, u, lam, mu, G, tangent=tangent)
+        out = STATES[model](disc, u, lam, mu, G, tangent=tangent)
         key, count = ("assembly_s", "assemblies") if tangent else ("residual_s", "residuals")
         clock[key] += time.perf_counter() - t
         clock[count] += 1

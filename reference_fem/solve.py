@@ -22,7 +22,7 @@ import scipy.sparse.linalg as spla
 
 from gdfe import _validation as v
 from gdfe._validation import GdfeTypeError
-from ._kernel import Discretisation, element_fields, linear_system, neohookean_state, svk_state
+from ._kernel import STATES, Discretisation, element_fields, linear_system
 from .material import BilayerMaterial
 from .mesh import LayeredStrip
 
@@ -30,7 +30,6 @@ __all__ = ["FemResult", "solve_linear", "solve_nonlinear"]
 
 log = logging.getLogger(__name__)
 
-_STATES = {"svk": svk_state, "neohookean": neohookean_state}
 
 
 @dataclasses.dataclass
@@ -201,7 +200,7 @@ def solve_nonlinear(strip: LayeredStrip, material: BilayerMaterial, *, element: 
     tol = v.check_positive("tol", tol)
     max_iter = v.check_int("max_iter", max_iter)
     min_step = v.check_positive("min_step", min_step)
-    v.check_choice("model", model, set(_STATES))
+    v.check_choice("model", model, set(STATES))
     t0 = time.perf_counter()
     disc = Discretisation(strip, element)
     fixed = constrained_dofs(strip, disc.X)
@@ -211,7 +210,7 @@ def solve_nonlinear(strip: LayeredStrip, material: BilayerMaterial, *, element: 
     scale = max(np.linalg.norm(f_lin[free]), 1e-300)
 
     def state(u, tangent):
-        return _STATES[model](disc, u, lam, mu, G, tangent=tangent)
+        return STATES[model](disc, u, lam, mu, G, tangent=tangent)
 
     u = np.zeros(disc.ndofs)
     u_prev, s_prev = None, 0.0

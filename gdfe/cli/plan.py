@@ -34,11 +34,12 @@ def run(args):
     import numpy as np
 
     import gdfe
-    from gdfe._validation import check_positive
+    from gdfe._validation import check_int, check_positive
     from gdfe.diagnosis import diagnose
     from gdfe.plan import models_to_tell_apart, parse_range, plan_tests
     from gdfe.predictive import from_diagnosis
 
+    check_int("--n", args.n, minimum=1)
     if args.sigma is not None:
         check_positive("--sigma", args.sigma)
     L, d = parse_range("--L", args.L), parse_range("--d", args.d)

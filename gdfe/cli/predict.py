@@ -41,6 +41,7 @@ def run(args):
     import gdfe
     from gdfe.predict import predict
 
+    level = check_level(args.level)  # named as the user gave it, on either path
     model = gdfe.load_model(args.model)
     if args.discrepancy is not None:
         from gdfe.discrepancy import fit_discrepancy
@@ -49,8 +50,8 @@ def run(args):
             raise GdfeError("--discrepancy: expected neither --simulate nor --noise (the discrepancy's own noise "
                             "is fitted)")
         koh = fit_discrepancy(model, gdfe.load_folding_tests(args.discrepancy))
-        pred = koh.predict(args.specimens, level=check_level(args.level))
+        pred = koh.predict(args.specimens, level=level)
     else:
-        pred = predict(model, args.specimens, level=args.level, noise=args.noise, simulate=args.simulate)
+        pred = predict(model, args.specimens, level=level, noise=args.noise, simulate=args.simulate)
     emit(pred.as_dict(), args.json, pred.text(), command="predict")
     return 0 if pred.converged else 3
