@@ -38,6 +38,10 @@ from gdfe import paper
 from gdfe._validation import GdfeError, check_choice, check_file, check_number, read_text
 from gdfe.model import DeformationModel, Member, Uncertainty
 
+#: A member's parameter part (standard deviation) beyond which its linearisation says nothing:
+#: a fold angle lies in [0, 2 pi], so a spread of pi covers half of all the folds there are [rad].
+PARAMETER_SD_MAX = math.pi
+
 __all__ = ["HingeSpecimens", "Prediction", "predict", "load_specimens", "members_of", "closed_form_jacobian", "draw_models",
            "mixture_interval", "LEVEL"]
 
@@ -311,6 +315,7 @@ class Prediction:
     weighting: str
     converged: bool = True
     model_part: str = "model_choice"
+    warnings: tuple = ()
 
     @property
     def width(self):
@@ -350,7 +355,7 @@ class Prediction:
             rows.append(row)
         out = {"model": self.model_name, "weighting": self.weighting, "method": self.method, "level": self.level,
                "n_specimens": len(s), "members": self.members, "converged": self.converged,
-               "mean_width_rad": float(np.mean(self.width)), "rows": rows,
+               "mean_width_rad": float(np.mean(self.width)), "rows": rows, "warnings": list(self.warnings),
                "parts": "sd_rad of each part (they add as variances); interval_rad: each part alone, a normal "
                         "interval about the mean at the same level; alpha_interval_rad: all together (the "
                         "mixture of the members, Student's t with each member's degrees of freedom)"}
@@ -375,6 +380,7 @@ class Prediction:
             if s.alpha is not None:
                 line += f"  {s.alpha[i]:.3f}" + ("" if self.inside[i] else " (outside)")
             lines.append(line)
+        lines += [f"warning: {w}" for w in self.warnings]
         if s.alpha is not None:
             lines.append(f"coverage {np.mean(self.inside):.2f} of {len(s)} measured angles; mean width "
                          f"{np.mean(self.width):.3f} rad")
@@ -425,6 +431,12 @@ def predict(model, specimens, level=LEVEL, *, noise=None, simulate=None):
     dof = np.array([m.model.uncertainty.dof for m in members])
     mean = mu @ w
     lo, hi = mixture_interval(w, mu, np.sqrt(sp**2 + sn**2), dof, level)
+    loose = [(m.model.name, int(np.argmax(sp[:, k])), float(np.max(sp[:, k]))) for k, m in enumerate(members)
+             if np.max(sp[:, k]) > PARAMETER_SD_MAX]
+    warnings = tuple(f"member {name}: its parameters' linearised spread is {v:.3g} rad on row {i + 2}, more than "
+                     f"{PARAMETER_SD_MAX:.3g} rad (half of a full turn): the tests do not pin its parameters down (a "
+                     f"parameter at a bound of its fit, or not identifiable), so the intervals it enters are not "
+                     f"meaningful" for name, i, v in loose)
     info = [{"name": m.model.name, "weight": float(m.weight), "noise_rad": float(m.model.uncertainty.noise_rad),
              "dof": int(m.model.uncertainty.dof), "noise_source": m.model.uncertainty.noise_source,
              "reading_offset_rad": m.model.uncertainty.reading_offset_rad} for m in members]
@@ -432,7 +444,8 @@ def predict(model, specimens, level=LEVEL, *, noise=None, simulate=None):
                       sd_parameters=np.sqrt((sp**2) @ w), sd_model=np.sqrt(((mu - mean[:, None]) ** 2) @ w),
                       sd_noise=np.full(n, float(np.sqrt(sn**2 @ w))), members=info, member_alpha=mu,
                       member_sd_parameters=sp, method="closed form" if simulate is None else f"GDFE ({simulate})",
-                      model_name=model.name, weighting=model.weighting or "single", converged=ok)
+                      model_name=model.name, weighting=model.weighting or "single", converged=ok,
+                      warnings=warnings)
 
 
 def _simulated(model, spec, resolution):

@@ -246,3 +246,19 @@ def test_a_model_whose_noise_cannot_be_estimated_is_saved_without_predictive_con
     monkeypatch.setattr(pv, "fit_uncertainty", failing_other)
     m = pv.from_diagnosis(table1_diag)
     assert other.name not in [x.model.name for x in m.ensemble] and m.uncertainty is not None
+
+
+def test_parameters_the_tests_do_not_pin_down_are_said_not_hidden_in_a_wide_interval(tmp_path):
+    """A member whose linearised parameter spread exceeds half a turn (pi rad: a fold lies in
+    [0, 2 pi]) makes no meaningful interval: the prediction says so, by member and row. With
+    alpha = K sqrt(h / d^3) L, d alpha / d K = alpha / K = sqrt(0.29 / 0.008) 3 = 18.06, so a
+    standard error of 0.5 on K spreads the angle by 9.0 rad, one of 0.005 by 0.09 rad."""
+    spec = HingeSpecimens(np.array([3.0]), np.array([0.2]), np.array([0.29]))
+    for se, warned in ((0.5, True), (0.005, False)):
+        f = tmp_path / f"se{se}.toml"
+        f.write_text('format = 1\nname = "eq3"\nprinciple = "eq1"\nsource = "gdfe calibrate"\n'
+                     f'[parameters.K]\nvalue = 0.0646\nse = {se}\n[data]\nn_tests = 18\nheld_out_rmse_rad = 0.1\n')
+        p = predict(load_model(f), spec)
+        assert p.sd_parameters[0] == pytest.approx(np.sqrt(0.29 / 0.2**3) * 3.0 * se, rel=1e-3)
+        assert bool(p.warnings) == warned and (not warned or "row 2" in p.warnings[0])
+        assert p.as_dict()["warnings"] == list(p.warnings)

@@ -142,7 +142,8 @@ COMMAND_KEYS = {
                  "warnings", "report", "model_file", "angles", "confounded", "baseline_form", "artefacts",
                  "attribution"),
     "report": ("index", "studies", "ok", "resolution", "generated", "versions", "view"),
-    "predict": ("weighting", "level", "n_specimens", "members", "mean_width_rad", "rows", "parts", "coverage"),
+    "predict": ("weighting", "level", "n_specimens", "members", "mean_width_rad", "rows", "parts", "coverage",
+                "warnings"),
     "plan": ("best", "named", "members", "entropy_nats", "information_nats", "expected_reduction", "tests",
              "candidates", "objective"),
     # every study: its name, figure and headlines; each study's own numbers under "study NAME"
