@@ -32,7 +32,8 @@ import numpy as np
 from gdfe._validation import GdfeError, check_int
 from gdfe.predict import HingeSpecimens, closed_form_jacobian, members_of
 
-__all__ = ["Plan", "plan_tests", "parse_range", "models_to_tell_apart", "GRID", "SAMPLES", "L_RANGE", "D_RANGE"]
+__all__ = ["Plan", "plan_tests", "candidate_grid", "parse_range", "models_to_tell_apart", "GRID", "SAMPLES", "L_RANGE",
+           "D_RANGE"]
 
 log = logging.getLogger(__name__)
 
@@ -197,6 +198,24 @@ def _information(mu, jac, cov, noise, chosen, cands, Z, truth):
     return (own - mix).mean(axis=1)
 
 
+def candidate_grid(L_range=L_RANGE, d_range=D_RANGE, h_range=None, grid=GRID):
+    """The candidate specimens of a plan: ``grid`` values along each range that varies (fewer when there
+    would be more than :data:`MAX_CANDIDATES` in all), every combination.
+
+    Returns
+    -------
+    L, d, h : (C,) float arrays [mm]
+    """
+    from gdfe import paper
+
+    h_range = (paper.H, paper.H) if h_range is None else h_range
+    ranges = (L_range, d_range, h_range)
+    varied = sum(hi > lo for lo, hi in ranges)
+    per_axis = max(2, min(grid, int(MAX_CANDIDATES ** (1.0 / max(varied, 1)))))
+    axes = [np.linspace(lo, hi, per_axis) if hi > lo else np.array([lo]) for lo, hi in ranges]
+    return tuple(a.ravel() for a in np.meshgrid(*axes, indexing="ij"))
+
+
 def plan_tests(model, n, L_range=L_RANGE, d_range=D_RANGE, h_range=None, *, grid=GRID, samples=SAMPLES, seed=0):
     """The ``n`` hinge specimens within the ranges that tell the named set of ``model`` apart best.
 
@@ -219,17 +238,10 @@ def plan_tests(model, n, L_range=L_RANGE, d_range=D_RANGE, h_range=None, *, grid
     -------
     Plan
     """
-    from gdfe import paper
-
     n = check_int("n", n, minimum=1)
     grid = check_int("grid", grid, minimum=2)
     samples = check_int("samples", samples, minimum=100)
-    h_range = (paper.H, paper.H) if h_range is None else h_range
-    ranges = (L_range, d_range, h_range)
-    varied = sum(hi > lo for lo, hi in ranges)
-    per_axis = max(2, min(grid, int(MAX_CANDIDATES ** (1.0 / max(varied, 1)))))
-    axes = [np.linspace(lo, hi, per_axis) if hi > lo else np.array([lo]) for lo, hi in ranges]
-    Lg, dg, hg = (a.ravel() for a in np.meshgrid(*axes, indexing="ij"))
+    Lg, dg, hg = candidate_grid(L_range, d_range, h_range, grid)
     members = members_of(model)
     names = [m.model.name for m in members]
     K = len(members)

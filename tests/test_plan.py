@@ -81,3 +81,16 @@ def test_plan_through_the_command_line(capsys):
     assert 0 < out["expected_reduction"] <= 1.0
     assert main(["plan", str(gdfe.TABLE1), "--n", "0"]) == 1
     assert "n: expected" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("rows, match", [
+    ([(2, 0.3, 0.29, 0.0), (3, 0.3, 0.29, 0.0), (4, 0.2, 0.29, 0.0), (5, 0.2, 0.29, 0.0), (6, 0.4, 0.29, 0.0)],
+     "nothing folded"),
+    ([(2, 0.3, 0.29, 1.0)] * 6, "the same row"),
+])
+def test_plan_refuses_degenerate_tests_as_diagnose_does(tmp_path, capsys, rows, match):
+    path = tmp_path / "t.csv"
+    path.write_text("L_mm,d_mm,h_mm,alpha_rad\n" + "".join(",".join(map(str, r)) + "\n" for r in rows))
+    assert main(["plan", str(path), "--n", "1"]) == 1
+    err = capsys.readouterr().err
+    assert "t.csv" in err and match in err

@@ -145,7 +145,8 @@ COMMAND_KEYS = {
     "predict": ("weighting", "level", "n_specimens", "members", "mean_width_rad", "rows", "parts", "coverage",
                 "warnings"),
     "plan": ("best", "named", "members", "entropy_nats", "information_nats", "expected_reduction", "tests",
-             "candidates", "objective"),
+             "candidates", "objective", "target", "target_kind", "level", "folds", "expected_variance_rad2",
+             "expected_width_rad", "noise_sd_rad", "chosen_by", "warnings"),
     # every study: its name, figure and headlines; each study's own numbers under "study NAME"
     "study": ("study", "figure", "title", "resolution", "headlines", "summary", "files"),
     "study fig06": ("R_eq3", "cells_across_hinge", "hinges", "specimen_L26"),
