@@ -75,7 +75,8 @@ def _specimens(t, idx):
 
 
 def _predictors(train, spec, folder, diagnose_kw=None, with_pseudo=True):
-    """Predictions of ``spec`` by every predictor fitted to ``train``: name -> Prediction."""
+    """Predictions of ``spec`` by every predictor fitted to ``train``: name -> Prediction. A noise
+    the diagnosis is told (``diagnose_kw["sigma"]``) is told to the discrepancy too."""
     import gdfe
     from gdfe.diagnosis import diagnose
     from gdfe.discrepancy import fit_discrepancy
@@ -90,7 +91,8 @@ def _predictors(train, spec, folder, diagnose_kw=None, with_pseudo=True):
         out["named set (pseudo-BMA)"] = predict(from_diagnosis(diag, weighting="pseudo-bma"), spec, LEVEL)
     base = gdfe.DeformationModel.from_calibration(gdfe.fit_reading(train, "eq1", n_boot=0), tests=train)
     out["Eq. 1 refitted"] = predict(base, spec, LEVEL)
-    out["Kennedy-O'Hagan (Eq. 1 + GP)"] = fit_discrepancy(base, train).predict(spec, LEVEL)
+    noise = (diagnose_kw or {}).get("sigma")
+    out["Kennedy-O'Hagan (Eq. 1 + GP)"] = fit_discrepancy(base, train, noise=noise).predict(spec, LEVEL)
     return out, diag
 
 

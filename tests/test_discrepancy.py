@@ -91,5 +91,51 @@ def test_predict_with_a_discrepancy_through_the_command_line(tmp_path, capsys):
     assert set(out["rows"][0]["parts"]) == {"parameters", "discrepancy", "noise"}
     # on its own tests the discrepancy follows the data far closer than Eq. 1 alone (RMSE 0.46 rad)
     assert out["rmse_rad"] < 0.2
-    assert main(["predict", str(model), str(gdfe.TABLE1), "--discrepancy", str(gdfe.TABLE1), "--noise", "0.1"]) == 1
-    assert "--discrepancy: expected neither" in capsys.readouterr().err
+    assert main(["predict", str(model), str(gdfe.TABLE1), "--discrepancy", str(gdfe.TABLE1), "--simulate"]) == 1
+    assert "--discrepancy: expected no --simulate" in capsys.readouterr().err
+    assert main(["predict", str(model), str(gdfe.TABLE1), "--discrepancy", str(gdfe.TABLE1), "--noise", "-1"]) == 1
+    assert "--noise" in capsys.readouterr().err
+    # a known noise: the white kernel is fixed at it
+    assert main(["predict", str(model), str(gdfe.TABLE1), "--discrepancy", str(gdfe.TABLE1), "--noise", "0.1",
+                 "--json", "-q"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["rows"][0]["parts"]["noise"]["sd_rad"] == pytest.approx(0.1 * out["members"][0]["loo_scale"], rel=1e-6)
+
+
+def test_the_leave_one_out_scale_is_that_of_refits_without_each_test():
+    """The closed form equals the process refitted (same kernel) without each test in turn."""
+    from sklearn.gaussian_process import GaussianProcessRegressor
+
+    from gdfe.discrepancy import loo_scale
+
+    rng = np.random.default_rng(3)
+    L, d, h, _, alpha = _world(14, rng)
+    base = DeformationModel.from_calibration(gdfe.fit_reading(FoldingTests(L=L, d=d, h=h, alpha=alpha), "eq1",
+                                                              n_boot=0))
+    D = fit_discrepancy(base, FoldingTests(L=L, d=d, h=h, alpha=alpha))
+    X, y = D.gp.X_train_, D.gp.y_train_
+    z = []
+    for i in range(len(y)):
+        keep = np.arange(len(y)) != i
+        g = GaussianProcessRegressor(kernel=D.gp.kernel_, optimizer=None).fit(X[keep], y[keep])
+        m, s = g.predict(X[[i]], return_std=True)
+        z.append((y[i] - m[0]) / s[0])
+    assert D.loo_scale == pytest.approx(max(1.0, float(np.sqrt(np.mean(np.square(z))))), rel=1e-6)
+    assert D.loo_scale >= 1.0
+
+
+def test_an_overconfident_fit_is_widened_by_its_leave_one_out_scale():
+    """A process that interpolates its tests (noise on its lower bound) gets a scale above 1, and the
+    process's part of the interval is multiplied by it."""
+    import dataclasses
+
+    rng = np.random.default_rng(0)
+    L, d, h, _, alpha = _world(12, rng, sigma=0.15)
+    tests = FoldingTests(L=L, d=d, h=h, alpha=alpha)
+    D = fit_discrepancy(DeformationModel.from_calibration(gdfe.fit_reading(tests, "eq1", n_boot=0)), tests)
+    spec = HingeSpecimens(L=np.array([2.0]), d=np.array([0.3]), h=np.array([0.29]))
+    plain = dataclasses.replace(D, loo_scale=1.0).predict(spec)
+    scaled = D.predict(spec)
+    assert scaled.sd_model[0] == pytest.approx(D.loo_scale * plain.sd_model[0])
+    assert scaled.sd_noise[0] == pytest.approx(D.loo_scale * plain.sd_noise[0])
+    assert scaled.width[0] >= plain.width[0]

@@ -25,7 +25,8 @@ def register(sub):
                    help="each member's angle from a GDFE solve of the hinge (default resolution coarse) instead of "
                         "the closed form")
     p.add_argument("--noise", type=float, default=None, metavar="S",
-                   help="noise of a test [rad], replacing the model file's (needed for a model file without one)")
+                   help="noise of a test [rad], replacing the model file's (needed for a model file without one); "
+                        "with --discrepancy, the known noise the process's white kernel is fixed at (default: fitted)")
     p.add_argument("--discrepancy", type=file_path, default=None, metavar="DATA.csv",
                    help="the Kennedy-O'Hagan predictor instead: the model file's closed form plus a Gaussian-process "
                         "discrepancy (scikit-learn) fitted to its residuals on these folding tests")
@@ -46,10 +47,11 @@ def run(args):
     if args.discrepancy is not None:
         from gdfe.discrepancy import fit_discrepancy
 
-        if args.simulate is not None or args.noise is not None:
-            raise GdfeError("--discrepancy: expected neither --simulate nor --noise (the discrepancy's own noise "
-                            "is fitted)")
-        koh = fit_discrepancy(model, gdfe.load_folding_tests(args.discrepancy))
+        if args.simulate is not None:
+            raise GdfeError("--discrepancy: expected no --simulate (the discrepancy corrects the closed form)")
+        if args.noise is not None:
+            check_number("--noise", args.noise, minimum=0.0, include_minimum=False)
+        koh = fit_discrepancy(model, gdfe.load_folding_tests(args.discrepancy), noise=args.noise)
         pred = koh.predict(args.specimens, level=level)
     else:
         pred = predict(model, args.specimens, level=level, noise=args.noise, simulate=args.simulate)
