@@ -16,6 +16,16 @@ the per-vertex spread: the root of the summed variances of each vertex's coordin
 draws, after each draw is aligned to the nominal shape by the rigid motion that fits it best
 (Kabsch), so the spread is of the shape, not of where the solver left it in space.
 
+A draw's start can do better than the nominal fold. The first :data:`PILOT` draws are folded
+from it; each later draw starts from the **secant prediction** of its shape: its cells'
+contractions ``c`` (their ratios ``R`` and any explicit per-face contraction) are written as
+the least-squares combination ``c - c0 = sum_j a_j (c_j - c0)`` of the pilots' (``c0`` the
+nominal model's), and its start is ``x0 + sum_j a_j (x_j - x0)``, the same combination of the
+pilots' folds (each aligned rigidly to the nominal ``x0`` first). Exact where the fold is linear
+in the contractions and the draws span no more directions than the pilots; near it otherwise
+(a few parameters per member, each draw a small step from the nominal model). A start only
+changes where Newton's method begins: every draw meets the same stopping test.
+
 The noise of a test is not in it: it is the scatter of one measured hinge, not of a part's every
 hinge at once. Draws that do not converge are counted and left out of the intervals, and said so.
 """
@@ -30,14 +40,19 @@ import numpy as np
 
 from gdfe._validation import GdfeError, check_int, check_number
 
-__all__ = ["LEVEL", "Ensemble", "fold_ensemble", "has_predictive_content", "align_rigidly", "wilson_interval",
-           "write_spread", "plot_band"]
+__all__ = ["LEVEL", "PILOT", "Ensemble", "fold_ensemble", "secant_starts", "has_predictive_content", "align_rigidly",
+           "wilson_interval", "write_spread", "plot_band"]
 
 #: Default level of the intervals.
 LEVEL = 0.9
 
 #: Solver options a draw inherits from the nominal solve (its start is the nominal shape, in one frame).
 DRAW_OPTIONS = ("method", "tol", "max_iter", "contact", "on_drift")
+#: Draws folded from the nominal shape before the later ones start from the secant prediction.
+PILOT = 4
+#: Largest combination coefficient a secant prediction may use (beyond it: the nominal start).
+MAX_COEFFICIENT = 3.0
+STARTS = ("predicted", "nominal", "solver")
 
 
 def has_predictive_content(model):
@@ -208,8 +223,48 @@ def _fold_one(item):
             "iterations": int(res.iterations), "seconds": seconds, "cpu_seconds": cpu}
 
 
+def _contractions(design):
+    """A design's cell contractions as one vector: the ratios ``R`` and any explicit per-face contraction."""
+    parts = [np.asarray(design.R, float).ravel()]
+    if getattr(design, "contraction", None) is not None:
+        parts.append(np.asarray(design.contraction, float).ravel())
+    return np.concatenate(parts)
+
+
+def secant_starts(c0, x0, pilot_c, pilot_x, targets):
+    """Starts of the draws of contractions ``targets`` from the pilots' folds (see the module's text).
+
+    Parameters
+    ----------
+    c0 : (m,) float array
+        The nominal model's contractions.
+    x0 : (v, 3) float array
+        The nominal fold.
+    pilot_c : (P, m) float array
+    pilot_x : (P, v, 3) float array
+        The pilots' contractions and folds, aligned rigidly to ``x0``.
+    targets : (N, m) float array
+
+    Returns
+    -------
+    (N, v, 3) float array
+        Each draw's start; the nominal fold where a draw is no combination of the pilots with
+        coefficients within :data:`MAX_COEFFICIENT` (it would be an extrapolation).
+    """
+    A = (np.asarray(pilot_c, float) - c0).T  # (m, P)
+    B = np.asarray(targets, float) - c0  # (N, m)
+    if A.size == 0 or not np.any(A):
+        return np.broadcast_to(x0, (len(B),) + x0.shape).copy()
+    coef = np.linalg.lstsq(A, B.T, rcond=1e-10)[0].T  # (N, P)
+    dx = np.asarray(pilot_x, float) - x0  # (P, v, 3)
+    out = x0 + np.einsum("np,pvk->nvk", coef, dx)
+    wild = np.abs(coef).max(axis=1) > MAX_COEFFICIENT
+    out[wild] = x0
+    return out
+
+
 def fold_ensemble(design, model, n, *, nominal, measure, labels=None, level=LEVEL, seed=0, process=None,
-                  options=None, start="nominal", n_jobs=None, scheduler=None, progress=None):
+                  options=None, start="predicted", n_jobs=None, scheduler=None, progress=None):
     """Fold ``design`` under ``n`` draws of ``model``'s predictive content.
 
     Parameters
@@ -235,9 +290,10 @@ def fold_ensemble(design, model, n, *, nominal, measure, labels=None, level=LEVE
         The part's process variables for the model.
     options : dict, optional
         Solver options of the draws (:data:`DRAW_OPTIONS`; others are ignored).
-    start : {"nominal", "solver"}
-        Where each draw's solve starts: the nominal fold (default), or the solver's own start
-        (:func:`gdfe.simulate`'s ``init="auto"``), for comparison.
+    start : {"predicted", "nominal", "solver"}
+        Where each draw's solve starts: the secant prediction from :data:`PILOT` draws folded
+        from the nominal fold (default; see the module's text), the nominal fold, or the
+        solver's own start (:func:`gdfe.simulate`'s ``init="auto"``), for comparison.
     n_jobs, scheduler, progress
         As :func:`gdfe.parallel.parallel_map`.
 
@@ -257,9 +313,10 @@ def fold_ensemble(design, model, n, *, nominal, measure, labels=None, level=LEVE
                         f"parameter covariance or an ensemble: gdfe diagnose or gdfe calibrate --model-out) to draw "
                         f"from")
     opts = {k: v for k, v in (options or {}).items() if k in DRAW_OPTIONS and v is not None}
-    if start not in ("nominal", "solver"):
-        raise GdfeError(f"start: expected 'nominal' or 'solver', got {start!r}")
-    init = "auto" if start == "solver" else np.asarray(nominal.points, float)
+    if start not in STARTS:
+        raise GdfeError(f"start: expected one of {', '.join(map(repr, STARTS))}, got {start!r}")
+    how = start
+    init = "auto" if how == "solver" else np.asarray(nominal.points, float)
     start = np.asarray(nominal.points, float)
     nominal_angles, nominal_measures = measure(nominal)
     k = len(nominal_angles)
@@ -267,9 +324,21 @@ def fold_ensemble(design, model, n, *, nominal, measure, labels=None, level=LEVE
     if len(labels) != k:
         raise GdfeError(f"labels: expected {k} (one per fold angle), got {len(labels)}")
     draws = draw_models(model, n, seed=seed)
-    items = [(m.apply(design, process), init, opts, measure) for m in draws]
+    designs = [m.apply(design, process) for m in draws]
+    pilots = PILOT if how == "predicted" and n > PILOT else n
+
+    def run(items):
+        return parallel_map(_fold_one, items, n_jobs=n_jobs, desc="ensemble", progress=progress, scheduler=scheduler)
+
     t0 = time.perf_counter()
-    out = parallel_map(_fold_one, items, n_jobs=n_jobs, desc="ensemble", progress=progress, scheduler=scheduler)
+    out = run([(d, init, opts, measure) for d in designs[:pilots]])
+    if pilots < n:
+        ok_pilots = [i for i in range(pilots) if out[i]["converged"]]
+        starts = secant_starts(_contractions(model.apply(design, process)), start,
+                               [_contractions(designs[i]) for i in ok_pilots],
+                               [align_rigidly(out[i]["points"], start) for i in ok_pilots],
+                               [_contractions(d) for d in designs[pilots:]])
+        out += run([(d, x, opts, measure) for d, x in zip(designs[pilots:], starts)])
     seconds = time.perf_counter() - t0
     ok = np.array([o["converged"] for o in out])
     good = [o for o in out if o["converged"]]
@@ -287,7 +356,8 @@ def fold_ensemble(design, model, n, *, nominal, measure, labels=None, level=LEVE
                     nominal_points=start, points=pts, spread_mm=spread, converged=ok,
                     iterations=np.array([o["iterations"] for o in out]), seconds=seconds,
                     draw_seconds=np.array([o["seconds"] for o in out]), models=[m.name for m in draws],
-                    start="the nominal fold" if isinstance(init, np.ndarray) else "the solver's own",
+                    start={"predicted": f"the nominal fold for {pilots} draws, then their secant prediction",
+                           "nominal": "the nominal fold", "solver": "the solver's own"}[how],
                     draw_cpu_seconds=np.array([o["cpu_seconds"] for o in out]))
 
 

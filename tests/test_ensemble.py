@@ -10,7 +10,7 @@ import pytest
 import gdfe
 from gdfe._validation import GdfeError
 from gdfe.cli import main
-from gdfe.ensemble import align_rigidly, fold_ensemble, has_predictive_content, wilson_interval
+from gdfe.ensemble import PILOT, align_rigidly, fold_ensemble, has_predictive_content, secant_starts, wilson_interval
 from gdfe.predict import draw_models
 
 L, D = 1.6, 0.33
@@ -57,6 +57,41 @@ def test_wilson_interval():
     assert lo < 0.5 < hi and hi - lo == pytest.approx(2 * z * np.sqrt(0.25 / 32 + z**2 / (4 * 32**2)) / (1 + z**2 / 32),
                                                        rel=1e-3)
     assert np.diff(wilson_interval(160, 320, 0.9)) < np.diff(wilson_interval(16, 32, 0.9))
+
+
+def test_the_secant_start_is_exact_for_a_linear_fold_and_refuses_to_extrapolate():
+    rng = np.random.default_rng(2)
+    m, v = 40, 30
+    M = rng.normal(size=(v, 3, m))  # a fold linear in the contractions
+    c0, x0 = rng.uniform(0.5, 0.9, m), rng.normal(size=(v, 3))
+
+    def fold(c):
+        return x0 + M @ (c - c0)
+
+    basis = rng.normal(scale=0.01, size=(2, m))  # draws of a two-parameter model
+    pilot_c = c0 + rng.normal(size=(3, 2)) @ basis
+    targets = c0 + rng.normal(size=(5, 2)) @ basis
+    starts = secant_starts(c0, x0, pilot_c, [fold(c) for c in pilot_c], targets)
+    np.testing.assert_allclose(starts, [fold(c) for c in targets], atol=1e-10)
+    far = c0 + 50 * (pilot_c[0] - c0)  # fifty times a pilot's step: the nominal fold, not an extrapolation
+    np.testing.assert_array_equal(secant_starts(c0, x0, pilot_c, [fold(c) for c in pilot_c], [far])[0], x0)
+    # no pilot (none converged): the nominal fold
+    np.testing.assert_array_equal(secant_starts(c0, x0, np.zeros((0, m)), np.zeros((0, v, 3)), targets[:1])[0], x0)
+
+
+def test_predicted_starts_fold_as_the_nominal_start_does_in_fewer_iterations(model_file):
+    model = gdfe.load_model(model_file)
+    design = _hinge(model)
+    nominal = gdfe.simulate(design)
+    n = PILOT + 4
+    by = {s: fold_ensemble(design, model, n, nominal=nominal, measure=_angle, seed=5, start=s)
+          for s in ("nominal", "predicted")}
+    assert all(e.n_converged == n for e in by.values())
+    np.testing.assert_allclose(by["predicted"].angles, by["nominal"].angles, atol=2e-3)  # the same stopping test
+    later = slice(PILOT, n)  # the draws after the pilots start from the secant prediction
+    assert by["predicted"].iterations[later].sum() < by["nominal"].iterations[later].sum()
+    np.testing.assert_array_equal(by["predicted"].iterations[:PILOT], by["nominal"].iterations[:PILOT])
+    assert "secant" in by["predicted"].start
 
 
 # -- the ensemble -----------------------------------------------------------------------------------------
