@@ -34,6 +34,7 @@ STUDIES = {
     "contact": "studies.contact",
     "inverse2d": "studies.inverse2d",
     "compare-shapes": "studies.compare_shapes",
+    "blind-shape-diagnosis": "studies.blind_shape_diagnosis",
     "uncertainty": "studies.uncertainty",
     "plan": "studies.plan",
 }
