@@ -16,7 +16,14 @@ points both models have:
   refinement sequence (FEM: 1, 2 elements per cell; GDFE: cells split 1, 2, 4 times), the error of
   each level against that model's finest, and the time each needs at equal shape error.
 
-Resolutions: coarse, the twist and the saddle on 4 mm plates (0.5 mm pixels); default, all five
+- the masks a 2-D inverse design prints (:func:`gdfe.inverse2d.design_surface` for a dome and a
+  saddle on a 6 mm film at 0.5 mm pixels, designed through GDFE, printed as halftoned masks):
+  how far an elastic bilayer folds the printed masks from what GDFE promised, and from the
+  target itself;
+- the fold angles where the part has rigid panels joined by hinges (the tube, the box):
+  :func:`gdfe.measure.panel_angles` on each model's mid-surface, the same function for both.
+
+Resolutions: coarse, the twist and the saddle on 4 mm plates (0.5 mm pixels); default, all seven
 parts at their printed size (Figure 8's 8 mm plates at 0.5 mm pixels); fine, the same with
 Figure 8's 0.25 mm pixels. Units: mm, rad, s.
 
@@ -44,14 +51,19 @@ D = paper.FIG6_D
 #: Per resolution: the parts, Figure 8's plates (cells along a side, pixel), the box's pixel, the FEM's
 #: in-plane refinements per part (the last is compared with GDFE; two or more give its refinement
 #: sequence), GDFE's cell splits (its refinement sequence) and the tolerance of the fit of R.
+#: Parts whose rigid panels are joined by hinges: their fold angles are compared.
+FOLD_PARTS = ("tube", "box")
+#: The 2-D inverse designs whose printed masks are compared: film size, pixel [mm], L-BFGS-B iterations.
+INVERSE = {"size": 6.0, "pixel": 0.5, "iterations": 20}
 SETTINGS = {
     "coarse": {"parts": ("twist", "saddle"), "fig08_cells": 8, "fig08_pixel": 0.5, "box_pixel": 0.5,
                "fem_refine": {}, "gdfe_split": (1,), "fit_tol": 0.01},
-    "default": {"parts": ("twist", "dome", "saddle", "tube", "box"), "fig08_cells": 16, "fig08_pixel": 0.5,
-                "box_pixel": 0.5, "fem_refine": {"twist": (1, 2)}, "gdfe_split": (1, 2, 4), "fit_tol": 0.003},
-    "fine": {"parts": ("twist", "dome", "saddle", "tube", "box"), "fig08_cells": 32, "fig08_pixel": 0.25,
-             "box_pixel": 0.5, "fem_refine": {"twist": (1, 2), "saddle": (1, 2)}, "gdfe_split": (1, 2, 4),
-             "fit_tol": 0.001},
+    "default": {"parts": ("twist", "dome", "saddle", "tube", "box", "inverse_dome", "inverse_saddle"),
+                "fig08_cells": 16, "fig08_pixel": 0.5, "box_pixel": 0.5, "fem_refine": {"twist": (1, 2)},
+                "gdfe_split": (1, 2, 4), "fit_tol": 0.003, "inverse": INVERSE},
+    "fine": {"parts": ("twist", "dome", "saddle", "tube", "box", "inverse_dome", "inverse_saddle"),
+             "fig08_cells": 32, "fig08_pixel": 0.25, "box_pixel": 0.5, "fem_refine": {"twist": (1, 2), "saddle": (1, 2)},
+             "gdfe_split": (1, 2, 4), "fit_tol": 0.001, "inverse": INVERSE},
 }
 
 
@@ -73,6 +85,8 @@ def part_grid(name, cfg):
                        np.where(bottom, gdfe.Material.CONTRACT_TOP,
                                 np.where(top, gdfe.Material.CONTRACT_BOTTOM, gdfe.Material.FREE_SHRINK))).astype(int)
         return mat, film, pixel
+    if name.startswith("inverse_"):
+        return inverse_masks(name[len("inverse_"):], cfg["inverse"])[:3]
     R = eq3_ratio()
     if name == "tube":
         from studies.fig07_crease_fold import tube_design
@@ -91,6 +105,70 @@ def part_grid(name, cfg):
 
     grid = design_grid(des, d=D)
     return grid.material.copy(), grid.film.copy(), tuple(grid.pixel)
+
+
+_INVERSE_CACHE = {}
+
+
+def inverse_masks(kind, inv):
+    """The masks a 2-D inverse design prints for ``kind`` (``"dome"``, ``"saddle"``): material codes,
+    film, pixel, and the design (its target and GDFE's fold of the printed masks)."""
+    key = (kind, inv["size"], inv["pixel"], inv["iterations"])
+    if key not in _INVERSE_CACHE:
+        import gdfe
+        from gdfe.inverse2d import design_surface, make_target
+
+        dsg = design_surface(make_target(kind, inv["size"]), pixel=inv["pixel"], d=D, iterations=inv["iterations"])
+        top, bottom = np.asarray(dsg.top, bool), np.asarray(dsg.bottom, bool)
+        mat = np.where(top & bottom, gdfe.Material.RIGID,
+                       np.where(bottom, gdfe.Material.CONTRACT_TOP,
+                                np.where(top, gdfe.Material.CONTRACT_BOTTOM, gdfe.Material.FREE_SHRINK))).astype(int)
+        _INVERSE_CACHE[key] = (mat, np.ones_like(top), inv["pixel"], dsg)
+    return _INVERSE_CACHE[key]
+
+
+def target_distance(dsg, shape):
+    """RMS distance [mm] of a vertex shape (``{(i, j): point}``) from the inverse design's target
+    surface after the best rigid motion (:func:`gdfe.inverse2d.distance.surface_distance`, the
+    measure the design reports), on two triangles per cell of the grid."""
+    from gdfe.inverse2d.distance import surface_distance
+
+    keys = sorted(shape)
+    index = {k: n for n, k in enumerate(keys)}
+    tri = []
+    for (i, j) in keys:
+        c = [index.get(v) for v in ((i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1))]
+        if None not in c:
+            tri += [(c[0], c[1], c[2]), (c[0], c[2], c[3])]
+    X = np.array([shape[k] for k in keys])
+    flat = np.array(keys, float) * dsg.film.pixel - np.asarray(dsg.target.film_size, float) / 2  # film coordinates
+    designed = dsg.target.point(flat, dsg.sigma)  # the alignment starts from the design's correspondence
+    return float(surface_distance(X, np.array(tri), dsg.target_surface, designed=designed).rms_mm)
+
+
+def panel_folds(mat, film, pixel, shape):
+    """Fold angles [rad] between the rigid panels of a part, measured on a vertex shape (``{(i, j):
+    point}``, the film's mid-surface) by :func:`gdfe.measure.panel_angles`: ``{(a, b): angle}``."""
+    from gdfe.measure import panel_angles
+
+    des = make_design(mat, film, pixel, eq3_ratio())
+    P = des.mesh.points
+    key = np.round((P[:, :2] - P[:, :2].min(axis=0)) / des.mesh.spacing[:2]).astype(int)
+    pts = np.array([shape.get(tuple(k), (np.nan, np.nan, np.nan)) for k in key], float)
+    if not np.all(np.isfinite(pts)):
+        return {}
+    return {tuple(r["panels"]): r["angle_rad"] for r in panel_angles(pts, des)}
+
+
+def _fold_rows(g_folds, f_folds):
+    """The two models' fold angles side by side, with their largest difference and means."""
+    if not g_folds:
+        return {}
+    rows = [{"panels": list(k), "gdfe_rad": g_folds[k], "fem_rad": f_folds.get(k, float("nan"))} for k in sorted(g_folds)]
+    return {"fold_angles": rows,
+            "fold_angle_max_diff_rad": float(np.nanmax([abs(r["gdfe_rad"] - r["fem_rad"]) for r in rows])),
+            "fold_angle_mean_gdfe_rad": float(np.mean([r["gdfe_rad"] for r in rows])),
+            "fold_angle_mean_fem_rad": float(np.nanmean([r["fem_rad"] for r in rows]))}
 
 
 def eq3_ratio():
@@ -232,6 +310,15 @@ def run_part(name, cfg, out=None):
            "fem_seconds": fem.seconds, "fem_converged": fem.converged, "fem_refine": fem_levels[-1][0],
            "fem_elements": fem.n_elements, "fem_dofs": fem.dofs, "fem_cost": fem.cost,
            "deviation_by_material_mm": _regions(mat, film, cmp["keys"], cmp["deviation"])}
+    g_shape = gdfe_vertices(g, gdes)
+    if name in FOLD_PARTS:
+        row.update(_fold_rows(panel_folds(mat, film, pixel, g_shape), panel_folds(mat, film, pixel, fem_shape)))
+    if name.startswith("inverse_"):
+        dsg = inverse_masks(name[len("inverse_"):], cfg["inverse"])[3]
+        row.update({"target": dsg.target.summary(), "gdfe_to_target_mm": target_distance(dsg, g_shape),
+                    "fem_to_target_mm": target_distance(dsg, fem_shape),
+                    "design_printable_rms_mm": float(dsg.printable_distance.rms_mm),
+                    "design_tolerance_mm": float(dsg.tolerance_mm)})
     if len(refine) > 1:
         first = {"split": 1, "seconds": g_sec, "n_cells": gdes.n_cells, "converged": bool(g.converged),
                  "_shape": gdfe_vertices(g, gdes)}
@@ -279,6 +366,16 @@ def run(resolution="default", out=None):
         headline("FEM time / GDFE time, same part (median)",
                  float(np.median([r["fem_seconds"] / r["gdfe_seconds"] for r in rows])), None, 1.0, "ge"),
     ]
+    inverse = [r for r in rows if "fem_to_target_mm" in r]
+    if inverse:
+        worst_inv = max(inverse, key=lambda r: r["fem_to_target_mm"] / r["design_tolerance_mm"])
+        hl.append(headline("inverse designs: the FEM's fold of the printed masks within the design's tolerance of "
+                           "the target (largest RMS / tolerance)",
+                           worst_inv["fem_to_target_mm"] / worst_inv["design_tolerance_mm"], None, 1.0, "le",
+                           expect=False,
+                           note=f"{worst_inv['part']}: FEM {worst_inv['fem_to_target_mm']:.3f} mm, GDFE "
+                                f"{worst_inv['gdfe_to_target_mm']:.3f} mm, tolerance "
+                                f"{worst_inv['design_tolerance_mm']:.3f} mm: the masks are designed through GDFE"))
     if ratios:
         hl.append(headline("FEM / GDFE time at equal shape error (median over parts)", float(np.median(ratios)),
                            None, 1.0, "ge"))

@@ -64,3 +64,40 @@ def test_one_small_part_compares_both_models(tmp_path):
     dev = vtu.point_data["deviation_mm"]
     assert np.nanmax(dev) == pytest.approx(row["max_mm"], rel=1e-9)
     assert row["fem_cost"]["newton_iterations"] >= 1
+
+
+def test_panel_folds_read_the_angle_between_two_panels_folded_about_their_hinge():
+    import gdfe
+
+    # panels of 3 columns (rigid), a hinge column (coated on one face) between them
+    mat = np.full((7, 2), gdfe.Material.RIGID, int)
+    mat[3] = gdfe.Material.CONTRACT_TOP
+    film = np.ones((7, 2), bool)
+    pixel, angle = 0.5, 0.9
+    shape = {}
+    for i in range(8):
+        for j in range(3):
+            x, y = i * pixel, j * pixel
+            if i >= 4:  # the second panel rotated about the hinge's far edge (x = 2 mm), about y
+                u = x - 2.0
+                x, z = 2.0 + u * np.cos(angle), u * np.sin(angle)
+            else:
+                z = 0.0
+            shape[(i, j)] = np.array([x, y, z])
+    folds = cs.panel_folds(mat, film, pixel, shape)
+    assert list(folds) == [(1, 2)]
+    assert folds[(1, 2)] == pytest.approx(angle, abs=1e-9)
+    rows = cs._fold_rows(folds, {(1, 2): 0.5})
+    assert rows["fold_angle_max_diff_rad"] == pytest.approx(0.4) and rows["fold_angles"][0]["fem_rad"] == 0.5
+    assert cs._fold_rows({}, {}) == {}
+
+
+@pytest.mark.slow
+def test_the_target_distance_of_an_inverse_design_is_the_designs_own():
+    """The study's distance of GDFE's fold of the printed masks to the target equals what the design reports."""
+    inv = {"size": 3.0, "pixel": 0.5, "iterations": 2}
+    mat, film, pixel, dsg = cs.inverse_masks("dome", inv)
+    res, des, _ = cs._gdfe(mat, film, pixel, cs.eq3_ratio())
+    assert res.converged
+    got = cs.target_distance(dsg, cs.gdfe_vertices(res, des))
+    assert got == pytest.approx(dsg.printable_distance.rms_mm, rel=0.02, abs=2e-4)
