@@ -35,7 +35,7 @@ def test_quick_bench_reports_every_section_and_verdict(capsys, tmp_path):
     assert "skipped" in res["fem_comparison"]
     v = res["verdicts"]
     assert set(v) == {"hinges", "fem", "sheet", "sheet_1e6", "lower_bound", "growth", "gpu"}
-    assert v["gpu"]["note"] == "not built: no GPU available"
+    assert v["gpu"]["note"].startswith("not measured") and v["gpu"]["met"] is None
     assert isinstance(v["hinges"]["met"], bool)
     assert isinstance(v["lower_bound"]["met"], bool)
     assert isinstance(v["growth"]["value"], float)

@@ -17,7 +17,8 @@ from gdfe.solver.alternation import solve_alternation
 from gdfe.solver.contact import Contact
 from gdfe.solver.energy import LocalGlobal, SolveStats
 from gdfe.solver.linearised import linearised_start
-from gdfe.solver.newton import ON_DRIFT, RELEASE_POINTS, ReducedHessian, cg_directions, factorised_directions, solve_newton
+from gdfe.solver.newton import (FORCINGS, ON_DRIFT, PRECONDITIONERS, RELEASE_POINTS, ReducedHessian, cg_directions,
+                                factorised_directions, solve_newton)
 
 __all__ = ["METHODS", "AUTO_NEWTON_CELLS", "auto_method", "Solver"]
 
@@ -45,9 +46,25 @@ class Solver(LocalGlobal):
     Parameters
     ----------
     design : Design
+    device : {"auto", "cpu", "gpu"}
+        Where ``method="newton-cg"`` runs its Hessian products, its preconditioner's
+        smoothers and the orientation step's polar decompositions
+        (:mod:`gdfe.solver.device`): ``"auto"`` is the GPU where CuPy sees one, else the CPU.
+    preconditioner : {"auto", "two-level", "amg"}
+        The preconditioner of ``method="newton-cg"`` (:func:`gdfe.solver.newton.cg_directions`):
+        ``"auto"`` is ``"amg"`` on a GPU, else ``"two-level"``.
+    forcing : {"eisenstat-walker", "sqrt"}
+        The forcing sequence of ``method="newton-cg"`` (:func:`gdfe.solver.newton.forcing_term`).
+    vanishing_damping : bool
+        ``method="newton-cg"``'s damping floor falls with the residual near the solution
+        (:func:`gdfe.solver.newton.solve_newton`); False holds it at ``MU_MIN``.
 
     Attributes
     ----------
+    device : str
+        ``"cpu"`` or ``"gpu"``, as resolved.
+    preconditioner : str
+        ``"two-level"`` or ``"amg"``, as resolved.
     reduced_hessian : ReducedHessian
         The Hessian's mesh-only constants, made on first use (by a Newton method or the CG
         linearised start).
@@ -55,6 +72,29 @@ class Solver(LocalGlobal):
     See :class:`LocalGlobal` for the factorised system (``factor``, ``L_ff``, ``free``,
     ``pin``), the steps (:meth:`orient`, :meth:`assemble`) and ``timings``.
     """
+
+    def __init__(self, design, device="auto", preconditioner="auto", forcing="eisenstat-walker",
+                 vanishing_damping=True):
+        from gdfe.solver import device as _device
+
+        self.device = _device.resolve(device)
+        if self.device == "gpu" and device == "auto":
+            from gdfe.solver.amg import available
+
+            if not available():  # the GPU's preconditioner is built with pyamg: without it the CPU
+                self.device = "cpu"
+        preconditioner = check_choice("preconditioner", preconditioner, ("auto",) + PRECONDITIONERS)
+        if preconditioner == "auto":
+            preconditioner = "amg" if self.device == "gpu" else "two-level"
+        if preconditioner == "two-level" and self.device == "gpu":
+            raise GdfeError("preconditioner: expected 'auto' or 'amg' on the GPU, got 'two-level' (its "
+                            "factorisations run on the CPU)")
+        self.preconditioner = preconditioner
+        self.forcing = check_choice("forcing", forcing, FORCINGS)
+        self.vanishing_damping = bool(vanishing_damping)
+        super().__init__(design)
+        if self.device == "gpu":
+            self.xp = _device.array_module("gpu")
 
     @functools.cached_property
     def reduced_hessian(self) -> ReducedHessian:
@@ -148,8 +188,11 @@ class Solver(LocalGlobal):
             return solve_newton(self, V0, activation, tol, max_iter, directions, contact=contact,
                                 on_drift=on_drift, monitor=monitor)
         if method == "newton-cg":
-            directions = cg_directions(self.reduced_hessian, self.rest(activation))
+            directions = cg_directions(self.reduced_hessian, self.rest(activation), forcing=self.forcing,
+                                       preconditioner=self.preconditioner, device=self.device)
             return solve_newton(self, V0, activation, tol, max_iter, directions, alphas=(1.0, 0.5, 0.25),
-                                contact=contact, on_drift=on_drift, monitor=monitor)
+                                contact=contact, on_drift=on_drift, monitor=monitor,
+                                vanishing_damping=self.vanishing_damping,
+                                extrapolate=self.forcing == "sqrt" and not self.vanishing_damping)
         return solve_alternation(self, V0, activation, tol, max_iter, anderson=method == "anderson",
                                  history=history)

@@ -233,7 +233,8 @@ class Result:
 
 
 def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=None,
-             history=6, seed=0, model=None, process=None, contact="auto", dhat=None, on_drift="warn"):
+             history=6, seed=0, model=None, process=None, contact="auto", dhat=None, on_drift="warn",
+             device="auto"):
     """Simulate the heat-activated shape change of a design.
 
     Parameters
@@ -284,6 +285,10 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
     process : dict, optional
         The part's process variables for the model's process mechanisms (``partial_activation``,
         ``batch``), e.g. ``{"T_C": 150}``.
+    device : {"auto", "cpu", "gpu"}
+        Where ``method="newton-cg"`` runs its Hessian products, preconditioner and polar
+        decompositions (:mod:`gdfe.solver.device`): ``"auto"`` (default) the GPU where CuPy
+        (``pip install -e ".[gpu]"``) sees one, else the CPU; ``"gpu"`` without one is refused.
     contact : {"auto", "on", "off"}
         Self-contact, which keeps the film from passing through itself
         (:mod:`gdfe.solver.contact`; needs the IPC Toolkit, ``pip install 'gdfe[contact]'``).
@@ -362,8 +367,11 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
                     "test passes (gdfe study stopping), so converged=True means only that the test passed",
                     tol, TRUSTED_TOL)
     on_drift = check_choice("on_drift", on_drift, ON_DRIFT)
+    from gdfe.solver.device import resolve
+
+    resolve(device)  # a bad name, or "gpu" without one, is refused before the set-up
     t0 = time.perf_counter()
-    solver = Solver(design)
+    solver = Solver(design, device=device)
     acts = np.linspace(0.0, 1.0, steps + 1)
     opts = dict(init=init, start=None if start is None else (start, float(acts[1])), seed=seed, tol=tol,
                 max_iter=max_iter, history=history, on_drift=on_drift)
