@@ -1,12 +1,12 @@
 """The blind benchmark of the fold-angle diagnoser (studies/blind_diagnosis.py) and its generators
 (studies/diagnosis_generators), which must not be the diagnoser's own formulas."""
 
-import ast
 import json
 from pathlib import Path
 
 import numpy as np
 import pytest
+from imports_of import imported_modules  # a module of tests/, which pytest puts on the path
 
 from studies import blind_diagnosis as bd
 from studies.diagnosis_generators import (GENERATORS, KINDS, SENSITIVITY, artefacts, columns, generate, heating,
@@ -23,14 +23,8 @@ def test_generators_do_not_import_the_diagnoser():
     files = sorted(GEN_DIR.glob("*.py"))
     assert len(files) >= 9 and {"artefacts.py", "columns.py", "lag.py"} <= {f.name for f in files}
     for f in files:
-        for node in ast.walk(ast.parse(f.read_text())):
-            names = []
-            if isinstance(node, ast.Import):
-                names = [a.name for a in node.names]
-            elif isinstance(node, ast.ImportFrom):
-                names = [node.module or ""] + [f"{node.module}.{a.name}" for a in node.names]
-            for n in names:
-                assert not n.startswith("gdfe.diagnosis"), f"{f.name} imports {n}"
+        for n in imported_modules(f):
+            assert not n.startswith("gdfe.diagnosis"), f"{f.name} imports {n}"
 
 
 def test_classes_and_share_of_null_or_outside():
