@@ -68,13 +68,12 @@ class Discretisation:
             np.stack([basis.basis[a][0].grad for a in range(nbf)]).transpose(2, 3, 0, 1)
         )
         self.w = np.ascontiguousarray(basis.dx)
+        #: the gradients again as ``(n_el, n_bf, 3 n_qp)``, for products over the quadrature points
+        self.dphi_t = np.ascontiguousarray(self.dphi.transpose(0, 2, 1, 3).reshape(self.dphi.shape[0], nbf, -1))
         self.edofs = np.ascontiguousarray(basis.element_dofs.T)
         self.n_el, self.n_qp, self.n_bf = self.dphi.shape[:3]
         vdofs = (3 * self.edofs[:, :, None] + np.arange(3)).reshape(self.n_el, 3 * nbf)
         self.vdofs = vdofs
-        n = 3 * nbf
-        self._rows = np.repeat(vdofs, n, axis=1).ravel()
-        self._cols = np.tile(vdofs, (1, n)).ravel()
         self._pattern = None
         self.chunk = max(1, int(_CHUNK_BUDGET // (self.n_qp * nbf * nbf)))
 
@@ -86,23 +85,123 @@ class Discretisation:
         for s in range(0, self.n_el, self.chunk):
             yield slice(s, min(s + self.chunk, self.n_el))
 
-    def sparse(self, Ke) -> sp.csr_matrix:
-        """Assemble element matrices ``(n_el, 3 n_bf, 3 n_bf)`` into a global CSR matrix."""
-        if self._pattern is None:
-            # sorted unique (row, col) keys are the CSR order; remember where each entry goes
-            keys = self._rows.astype(np.int64) * self.ndofs + self._cols
-            uniq, inverse = np.unique(keys, return_inverse=True)
-            rows = uniq // self.ndofs
-            indptr = np.searchsorted(rows, np.arange(self.ndofs + 1))
-            self._pattern = (inverse, (uniq % self.ndofs).astype(np.int32), indptr, uniq.size)
-        inverse, indices, indptr, nnz = self._pattern
-        data = np.bincount(inverse, weights=Ke.ravel(), minlength=nnz)
-        return sp.csr_matrix((data, indices, indptr), shape=(self.ndofs, self.ndofs))
+    def pattern(self, keep=None, upper=False) -> "SparsePattern":
+        """The sparsity pattern of assembled matrices, restricted to the vector dofs ``keep`` (all by
+        default) and to the upper triangle when ``upper`` (see :class:`SparsePattern`)."""
+        return SparsePattern(self, keep=keep, upper=upper)
+
+    def sparse(self, Ke, pattern=None) -> sp.csr_matrix:
+        """Assemble element matrices ``(n_el, 3 n_bf, 3 n_bf)`` into a global CSR matrix (on ``pattern``
+        when given, else the whole matrix)."""
+        if pattern is None:
+            if self._pattern is None:
+                self._pattern = SparsePattern(self)
+            pattern = self._pattern
+        return pattern.assemble(Ke)
 
     def vector(self, fe) -> np.ndarray:
         """Assemble element vectors ``(n_el, n_bf, 3)`` into a global ``(3 N,)`` vector."""
         return np.bincount(self.vdofs.ravel(), weights=fe.reshape(self.n_el, -1).ravel(),
                            minlength=self.ndofs)
+
+
+class SparsePattern:
+    """A fixed CSR pattern of assembled matrices and where each element entry goes in it.
+
+    Built from the node pairs that share an element (3 x 3 blocks of vector dofs), so the sort that
+    finds the pattern runs over ``n_el n_bf^2`` keys instead of ``9 n_el n_bf^2``. Every element
+    matrix entry gets the index of its CSR entry (or of a discarded slot, for entries outside
+    ``keep`` or below the diagonal when ``upper``), so an assembly is one ``bincount``, with no
+    COO-to-CSR conversion, slicing or triangle extraction.
+
+    Parameters
+    ----------
+    disc : Discretisation
+    keep : (m,) int array, optional
+        Sorted vector dofs that are kept, renumbered ``0 .. m-1`` (default: all).
+    upper : bool
+        Keep only the upper triangle (diagonal included).
+
+    Attributes
+    ----------
+    indptr, indices : int arrays
+        The CSR structure (sorted column indices), shared by every matrix assembled on it.
+    shape : (int, int)
+    """
+
+    def __init__(self, disc, keep=None, upper=False):
+        N, nb = disc.N, disc.n_bf
+        edofs = disc.edofs.astype(np.int64)
+        keys = (edofs[:, :, None] * N + edofs[:, None, :]).ravel()
+        blocks, binv = np.unique(keys, return_inverse=True)
+        del keys
+        brow = blocks // N
+        bptr = np.searchsorted(brow, np.arange(N + 1))
+        per_row = np.diff(bptr)  # blocks in each block row
+        rank = np.arange(blocks.size) - bptr[brow]
+        # full scalar CSR: row 3p + i holds columns 3 q_j + k of the block row p's blocks q_j
+        row_len = np.repeat(3 * per_row, 3)
+        indptr = np.concatenate([[0], np.cumsum(row_len)])
+        bcol = (blocks % N).astype(np.int64)
+        # the columns of row 3p + i: for each block of row p, 3 q + (0, 1, 2); the same for i = 0, 1, 2
+        block_cols = (3 * bcol[:, None] + np.arange(3)).reshape(-1)  # per block row, concatenated
+        starts = 3 * bptr[:-1]
+        seg = np.repeat(np.arange(N), 3 * per_row)  # block row of each entry of block_cols
+        offset = np.arange(block_cols.size) - starts[seg]
+        indices = np.empty(indptr[-1], dtype=np.int64)
+        for i in range(3):
+            indices[indptr[3 * seg + i] + offset] = block_cols
+        del seg, offset, block_cols
+        nnz = int(indptr[-1])
+        ndofs = 3 * N
+        if keep is None and not upper:
+            self.indptr = indptr.astype(np.int32) if nnz < 2**31 else indptr
+            self.indices = indices.astype(self.indptr.dtype)
+            self.shape = (ndofs, ndofs)
+            select = None
+        else:
+            kept = np.ones(ndofs, bool) if keep is None else np.zeros(ndofs, bool)
+            if keep is not None:
+                kept[np.asarray(keep)] = True
+            renum = np.cumsum(kept) - 1
+            rows = np.repeat(np.arange(ndofs), np.diff(indptr))
+            mask = kept[rows] & kept[indices]
+            if upper:
+                mask &= indices >= rows
+            select = np.where(mask, np.cumsum(mask) - 1, int(mask.sum()))
+            m = int(kept.sum())
+            counts = np.bincount(renum[rows[mask]], minlength=m)
+            new_indptr = np.concatenate([[0], np.cumsum(counts)])
+            dtype = np.int32 if new_indptr[-1] < 2**31 else np.int64
+            self.indptr = new_indptr.astype(dtype)
+            self.indices = renum[indices[mask]].astype(dtype)
+            self.shape = (m, m)
+            del rows, mask
+        self.nnz = int(self.indptr[-1])
+        # CSR index of every element entry (e, a, i, b, k): block (a, b) at rank j in block row p
+        base = (9 * bptr[brow] + 3 * rank)  # first entry of each block in row 3p
+        target = np.empty(disc.n_el * (3 * nb) ** 2, dtype=np.int64 if nnz >= 2**31 else np.int32)
+        step = max(1, 2_000_000 // (9 * nb * nb))
+        for s in range(0, disc.n_el, step):
+            e = slice(s, min(s + step, disc.n_el))
+            c = e.stop - e.start
+            b = binv[e.start * nb * nb:e.stop * nb * nb].reshape(c, nb, 1, nb, 1)
+            p = edofs[e]
+            pos = (base[b] + (3 * per_row[p])[:, :, None, None, None] * np.arange(3)[None, None, :, None, None]
+                   + np.arange(3)[None, None, None, None, :])
+            pos = pos.reshape(-1)
+            target[e.start * (3 * nb) ** 2:e.stop * (3 * nb) ** 2] = pos if select is None else select[pos]
+        self.target = target
+        self.dump = select is not None  # entries outside the pattern go to one extra slot
+
+    def assemble(self, Ke) -> sp.csr_matrix:
+        """The CSR matrix of element matrices ``Ke`` ``(n_el, 3 n_bf, 3 n_bf)`` on this pattern."""
+        data = np.bincount(self.target, weights=Ke.reshape(-1), minlength=self.nnz + self.dump)
+        if self.dump:
+            data = data[:self.nnz]
+        A = sp.csr_matrix((data, self.indices, self.indptr), shape=self.shape)
+        A.has_sorted_indices = True
+        return A
 
 
 def element_fields(strip, material, disc, scale=1.0):
@@ -169,18 +268,24 @@ def linear_system(disc, lam, mu, eps):
     """
     n = 3 * disc.n_bf
     Ke = np.empty((disc.n_el, n, n))
-    fe = np.empty((disc.n_el, disc.n_bf, 3))
     for s in disc.chunks():
         dphi, w = disc.dphi[s], disc.w[s]
         c = dphi.shape[0]
         F = np.broadcast_to(np.eye(3), (c, disc.n_qp, 3, 3))
         Ke[s] = _tangent(dphi, w, F, None, np.ones((c, 3)), lam[s], mu[s], np.ones(c)).reshape(c, n, n)
+    return disc.sparse(Ke), eigenstrain_load(disc, lam, mu, eps)
+
+
+def eigenstrain_load(disc, lam, mu, eps):
+    """The equivalent nodal forces of the eigenstrain, ``int grad(phi) : C : eps* dV``: ``(3N,)`` [N]."""
+    fe = np.empty((disc.n_el, disc.n_bf, 3))
+    for s in disc.chunks():
         sig = lam[s][:, None] * eps[s].sum(axis=1)[:, None] + 2 * mu[s][:, None] * eps[s]  # diagonal
-        fe[s] = np.einsum("cq,cqai,ci->cai", w, dphi, sig)
-    return disc.sparse(Ke), disc.vector(fe)
+        fe[s] = np.einsum("cq,cqai,ci->cai", disc.w[s], disc.dphi[s], sig)
+    return disc.vector(fe)
 
 
-def svk_state(disc, u, lam, mu, G, *, tangent=True):
+def svk_state(disc, u, lam, mu, G, *, tangent=True, pattern=None):
     """Energy, internal force and (optionally) tangent of the eigenstrained SVK solid.
 
     Parameters
@@ -193,6 +298,9 @@ def svk_state(disc, u, lam, mu, G, *, tangent=True):
         Inverse free stretch per element.
     tangent : bool
         Also assemble the tangent stiffness.
+    pattern : SparsePattern, optional
+        Assemble the tangent on this pattern (some dofs, the upper triangle;
+        :meth:`Discretisation.pattern`) instead of the whole matrix.
 
     Returns
     -------
@@ -201,10 +309,10 @@ def svk_state(disc, u, lam, mu, G, *, tangent=True):
         Internal force ``int P : grad(phi) dV`` (the residual; there are no external loads).
     K : (3N, 3N) csr_matrix [N/mm] or None
     """
-    return _state(disc, u, lam, mu, G, tangent, _svk_chunk)
+    return _state(disc, u, lam, mu, G, tangent, _svk_chunk, pattern)
 
 
-def neohookean_state(disc, u, lam, mu, G, *, tangent=True):
+def neohookean_state(disc, u, lam, mu, G, *, tangent=True, pattern=None):
     """Energy, internal force and (optionally) tangent of the eigenstrained neo-Hookean solid.
 
     ``psi(F_e) = mu/2 (F_e : F_e - 3) - mu ln J_e + lambda/2 (ln J_e)^2`` per unit volume of the
@@ -216,13 +324,13 @@ def neohookean_state(disc, u, lam, mu, G, *, tangent=True):
 
     Parameters and returns as :func:`svk_state`.
     """
-    return _state(disc, u, lam, mu, G, tangent, _neohookean_chunk)
+    return _state(disc, u, lam, mu, G, tangent, _neohookean_chunk, pattern)
 
 
-def _state(disc, u, lam, mu, G, tangent, chunk):
+def _state(disc, u, lam, mu, G, tangent, chunk, pattern=None):
     """Energy, internal force and tangent of an eigenstrained solid, assembled chunk by chunk.
 
-    ``chunk(dphi, w, F, lam, mu, g, jst, tangent)`` is the material law on one chunk of ``c``
+    ``chunk(dphi, w, F, lam, mu, g, jst, tangent, dphi_t)`` is the material law on one chunk of ``c``
     elements, with ``F = I + grad u`` of shape ``(c, n_qp, 3, 3)``, ``g`` the chunk's rows of ``G``
     and ``jst`` its ``J*``. It returns the chunk's energy, first Piola stress ``P`` ``(c, n_qp, 3, 3)``
     and element tangents ``(c, 3 n_bf, 3 n_bf)`` (None without ``tangent``), or None where the
@@ -235,23 +343,28 @@ def _state(disc, u, lam, mu, G, tangent, chunk):
     fe = np.empty((disc.n_el, disc.n_bf, 3))
     Ke = np.empty((disc.n_el, n, n)) if tangent else None
     for s in disc.chunks():
-        dphi, w = disc.dphi[s], disc.w[s]
-        F = np.einsum("cai,cqaJ->cqiJ", U[disc.edofs[s]], dphi)
+        dphi, w, dphi_t = disc.dphi[s], disc.w[s], disc.dphi_t[s]
+        c, q = w.shape
+        # F_iJ = delta_iJ + sum_a u_ai dphi_aJ, one (3 x n_bf) (n_bf x 3 n_qp) product per element
+        F = np.matmul(U[disc.edofs[s]].transpose(0, 2, 1), dphi_t).reshape(c, 3, q, 3).transpose(0, 2, 1, 3)
+        F = np.ascontiguousarray(F)
         F[..., 0, 0] += 1.0
         F[..., 1, 1] += 1.0
         F[..., 2, 2] += 1.0
-        out = chunk(dphi, w, F, lam[s], mu[s], G[s], Jst[s], tangent)
+        out = chunk(dphi, w, F, lam[s], mu[s], G[s], Jst[s], tangent, dphi_t)
         if out is None:
             return np.inf, np.full(disc.ndofs, np.nan), None
         e, P, K = out
         energy += e
-        fe[s] = np.einsum("cq,cqiL,cqaL->cai", w, P, dphi)
+        # f_ai = sum_q,L w P_iL dphi_aL
+        Pw = (P * w[:, :, None, None]).transpose(0, 1, 3, 2).reshape(c, 3 * q, 3)
+        fe[s] = np.matmul(dphi_t, Pw)
         if tangent:
             Ke[s] = K
-    return energy, disc.vector(fe), (disc.sparse(Ke) if tangent else None)
+    return energy, disc.vector(fe), (disc.sparse(Ke, pattern) if tangent else None)
 
 
-def _svk_chunk(dphi, w, F, lam, mu, g, jst, tangent):
+def _svk_chunk(dphi, w, F, lam, mu, g, jst, tangent, dphi_t=None):
     """The SVK law on one chunk of elements (see :func:`_state`)."""
     c, n = dphi.shape[0], 3 * dphi.shape[2]
     gg = (g[:, :, None] * g[:, None, :])[:, None]  # (c, 1, 3, 3): G_J G_L
@@ -268,7 +381,7 @@ def _svk_chunk(dphi, w, F, lam, mu, g, jst, tangent):
     return energy, P, K
 
 
-def _neohookean_chunk(dphi, w, F, lam, mu, g, jst, tangent):
+def _neohookean_chunk(dphi, w, F, lam, mu, g, jst, tangent, dphi_t=None):
     """The neo-Hookean law on one chunk of elements (see :func:`_state`); None where ``J_e <= 0``."""
     c, n_qp, n_bf = dphi.shape[:3]
     n = 3 * n_bf
@@ -288,12 +401,16 @@ def _neohookean_chunk(dphi, w, F, lam, mu, g, jst, tangent):
     if not tangent:
         return energy, P, None
     dt = dphi * g
-    W = np.einsum("cqJi,cqaJ->cqai", Finv, dt).reshape(c, n_qp, n)
+    W = np.matmul(dt, Finv).reshape(c, n_qp, n)  # W_ai = (F_e^-T G grad phi_a)_i
     wj = w * j_
     K = _bmm(W * (wj * l_)[:, :, None], W).reshape(c, n_bf, 3, n_bf, 3)
     K += _bmm(W * (wj * (m_ - l_ * lnJ))[:, :, None], W).reshape(
         c, n_bf, 3, n_bf, 3).transpose(0, 1, 4, 3, 2)
-    Kd = np.einsum("cqaJ,cqbJ->cab", dt * (wj * m_)[:, :, None, None], dt, optimize=True)
+    if dphi_t is None:
+        dphi_t = dphi.transpose(0, 2, 1, 3).reshape(c, n_bf, -1)
+    dt_t = (dphi_t.reshape(c, n_bf, n_qp, 3) * g.reshape(c, 1, 1, 3))
+    Kd = np.matmul((dt_t * (wj * m_)[:, None, :, None]).reshape(c, n_bf, -1),
+                   dt_t.reshape(c, n_bf, -1).transpose(0, 2, 1))
     for i in range(3):
         K[:, :, i, :, i] += Kd
     return energy, P, K.reshape(c, n, n)

@@ -2,13 +2,20 @@
 
 Total Lagrangian hyperelasticity with ``F = F_e F*`` (:mod:`reference_fem._kernel`, neo-Hookean by
 default), the film's eigenstrain applied in adaptive load steps (``eps*(s) = s eps*``): a step
-that fails to converge in ``max_iter`` Newton iterations is halved, one that converges in at most
-``easy_iter`` iterations doubles the next, and each step starts from the extrapolation of the last
-two converged states. A Newton iteration solves with a factorisation of the tangent (assembled
-vectorised over elements; :mod:`reference_fem.linear_solvers`: sparse LDL^T/LU or AMG-preconditioned
-CG, chosen by size), then takes a backtracking line search on the energy. A factorisation is kept
-for the next iterations while each cuts the residual fourfold or more (modified Newton,
-``reuse=True``), so a converging step costs fewer assemblies and factorisations than iterations.
+that fails to converge in ``max_iter`` Newton iterations is halved, one that
+converges in at most ``easy_iter`` iterations doubles the next, and each step starts from the
+extrapolation of the last two converged states.
+
+A Newton iteration assembles the tangent at the current state (vectorised over elements, straight
+into the upper triangle of its free rows and columns: :meth:`Discretisation.pattern`), solves for
+the step and takes a backtracking line search on the energy. The step is an inexact Newton step:
+GMRES on the current tangent, preconditioned by the last factorisation
+(:mod:`reference_fem.linear_solvers`: sparse LDL^T/LU, or AMG-preconditioned CG, chosen by size),
+to an Eisenstat-Walker forcing term; the tangent is factorised afresh only when the Krylov
+iterations pass what a factorisation costs (:class:`_TangentSolver`). After an iteration that cut
+the residual fourfold or more, the next step is taken with the kept factorisation alone, without
+assembling the tangent (modified Newton). The factorisation is kept across load steps, and PARDISO
+analyses the tangent's pattern once per solve.
 
 Supports (``support``):
 
@@ -19,10 +26,11 @@ Supports (``support``):
 ``"clamped"``
     Every node on the film's edge with the smallest x is fixed (a clamped edge).
 
-The result's :attr:`PlateResult.cost` splits the wall time into assembly (tangent and residual),
-factorisation (or AMG set-up), solves and the rest, and compares it with the limit of a plain
-Newton solve, one assembly and one factorisation per Newton iteration (``over_limit`` below 1: the
-reused factorisations made it cheaper than that).
+The result's :attr:`PlateResult.cost` splits the wall time into set-up, assembly (tangent and
+residual), analysis, factorisation (or AMG set-up), triangular solves (``solve_s``, of which
+``krylov_solve_s`` inside GMRES), the rest of the Krylov iterations (``krylov_s``) and the rest, and
+compares it with the limit of a plain Newton solve, one assembly and one factorisation per Newton
+iteration (``over_limit`` below 1: the kept factorisations made it cheaper than that).
 """
 
 from __future__ import annotations
@@ -32,12 +40,11 @@ import logging
 import time
 
 import numpy as np
-import scipy.sparse as sp
 
 from gdfe import _validation as v
 from gdfe._validation import GdfeTypeError
-from ._kernel import STATES, Discretisation, linear_system
-from .linear_solvers import LinearCost, make_solver
+from ._kernel import STATES, Discretisation, eigenstrain_load, linear_system
+from .linear_solvers import LinearCost, SymmetricCSR, gmres, make_solver
 from .material import BilayerMaterial
 from .mesh import FILM
 from .plate import Plate
@@ -47,8 +54,17 @@ __all__ = ["PlateResult", "solve_plate", "plate_fields", "SUPPORTS"]
 log = logging.getLogger(__name__)
 
 SUPPORTS = ("free", "clamped")
-#: A factorisation is reused while each iteration cuts the residual at least this much (``reuse=True``).
+#: Krylov iterations a kept factorisation may take on a Newton step before the tangent is factorised
+#: afresh, until the solve has measured what a factorisation and a Krylov iteration cost; then the
+#: cap is their ratio, within KRYLOV_RANGE.
+KRYLOV_MAX = 12
+#: A Newton iteration that cut the residual at least this much is followed by a step with the kept
+#: factorisation alone, without assembling the tangent (modified Newton).
 REUSE_RATE = 0.25
+KRYLOV_RANGE = (3, 30)
+#: Eisenstat-Walker forcing (their choice 2): ``eta = GAMMA (r_k / r_k-1)^ALPHA``, at most ETA_MAX. Looser
+#: steps (ETA_MAX = 0.1) cost more Newton iterations than GMRES saved (docs/reference_fem_plates.md).
+EW_GAMMA, EW_ALPHA, ETA_MAX = 0.9, 2.0, 1e-3
 
 
 @dataclasses.dataclass
@@ -171,8 +187,8 @@ def fixed_dofs(plate: Plate, X: np.ndarray, support: str = "free") -> np.ndarray
 
 
 def solve_plate(plate: Plate, material: BilayerMaterial | None = None, *, element: str = "hex2",
-                model: str = "neohookean", support: str = "free", solver: str = "auto", steps: int = 4,
-                tol: float = 1e-8, max_iter: int = 12, easy_iter: int = 4, min_step: float = 1e-3,
+                model: str = "neohookean", support: str = "free", solver: str = "auto", steps: int = 8,
+                tol: float = 1e-8, max_iter: int = 20, easy_iter: int = 6, min_step: float = 1e-3,
                 reuse: bool = True, linear: bool = False, keep_steps: bool = False, progress=None) -> PlateResult:
     """Deform a plate by its film's eigenstrain.
 
@@ -190,18 +206,22 @@ def solve_plate(plate: Plate, material: BilayerMaterial | None = None, *, elemen
     solver : {"auto", "direct", "amg"}
         Linear solver of the Newton steps (:mod:`reference_fem.linear_solvers`).
     steps : int
-        Initial number of equal load steps, >= 1.
+        Initial number of equal load steps, >= 1 (a step that does not converge is halved, one that
+        converges in ``easy_iter`` iterations or fewer doubles the next).
     tol : float
         Residual norm, relative to the linear eigenstrain load, below which a step has converged.
     max_iter : int
-        Factorisations per load step before it is halved.
+        Newton iterations with a new tangent per load step (and three times as many in all) before
+        it is halved.
     easy_iter : int
         A step converged in at most this many iterations doubles the next.
     min_step : float
         Smallest load increment before the solve gives up (reported, ``converged=False``).
     reuse : bool
-        Keep a factorisation for further Newton iterations while each cuts the residual by
-        :data:`REUSE_RATE` or more (modified Newton); False: a new tangent every iteration.
+        Keep a factorisation as the preconditioner of GMRES on later tangents (inexact Newton,
+        refactorised when the Krylov iterations pass what a factorisation costs), and for steps
+        without a tangent after fast iterations (modified Newton); False: a new tangent and
+        factorisation every iteration.
     linear : bool
         Small-strain solve instead (one assembly, one solve).
     keep_steps : bool
@@ -231,31 +251,36 @@ def solve_plate(plate: Plate, material: BilayerMaterial | None = None, *, elemen
     fixed = fixed_dofs(plate, disc.X, support)
     free = np.setdiff1d(np.arange(disc.ndofs), fixed)
     lam, mu, _, eps = plate_fields(plate, material, disc.n_el)
-    K0, f_lin = linear_system(disc, lam, mu, eps)
-    scale = max(np.linalg.norm(f_lin[free]), 1e-300)
     factor, method = make_solver(solver, free.size, disc.X, free)
     lin = LinearCost(method=method)
-    clock["setup_s"] = time.perf_counter() - t0
     record = []
     snapshots = []
     if linear:
+        K0, f_lin = linear_system(disc, lam, mu, eps)
+        scale = max(np.linalg.norm(f_lin[free]), 1e-300)
+        clock["setup_s"] = time.perf_counter() - t0
+        A = K0[free][:, free]
         u = np.zeros(disc.ndofs)
-        u[free] = factor(K0[free][:, free], lin)(f_lin[free], lin)
-        r = float(np.linalg.norm(K0[free][:, free] @ u[free] - f_lin[free]) / scale)
+        u[free] = factor(A, lin)(f_lin[free], lin)
+        r = float(np.linalg.norm(A @ u[free] - f_lin[free]) / scale)
         ok = bool(np.all(np.isfinite(u)) and r < 1e-6)
         record.append({"load": 1.0, "accepted": ok, "iterations": 1, "residual": r, "snapshot": 0})
         snapshots.append(u.reshape(-1, 3).copy())
         return _result(plate, material, disc, u, ok, 1.0 if ok else 0.0, 1, r, record, snapshots,
                        t_start, clock, lin, element, method)
+    scale = max(np.linalg.norm(eigenstrain_load(disc, lam, mu, eps)[free]), 1e-300)
+    pattern = disc.pattern(free, upper=True)  # the tangent's free rows and columns, upper triangle
+    clock["setup_s"] = time.perf_counter() - t0
 
     def state(u, G, tangent):
         t = time.perf_counter()
-        out = STATES[model](disc, u, lam, mu, G, tangent=tangent)
+        energy, f, K = STATES[model](disc, u, lam, mu, G, tangent=tangent, pattern=pattern)
         key, count = ("assembly_s", "assemblies") if tangent else ("residual_s", "residuals")
         clock[key] += time.perf_counter() - t
         clock[count] += 1
-        return out
+        return energy, f, (None if K is None else SymmetricCSR(K))
 
+    steps_solver = _TangentSolver(factor, lin, reuse)
     u = np.zeros(disc.ndofs)
     u_prev, s_prev = None, 0.0
     s, ds = 0.0, 1.0 / steps
@@ -268,7 +293,7 @@ def solve_plate(plate: Plate, material: BilayerMaterial | None = None, *, elemen
         if u_prev is not None:
             trial += (s_new - s) / (s - s_prev) * (u - u_prev)
         ok, trial, it, residual = _newton(lambda w, tangent: state(w, G, tangent), trial, free, scale, tol,
-                                          max_iter, factor, lin, reuse)
+                                          max_iter, steps_solver)
         iterations += it
         step = {"load": float(s_new), "accepted": bool(ok), "iterations": int(it), "residual": float(residual)}
         record.append(step)
@@ -303,8 +328,11 @@ def _result(plate, material, disc, u, converged, s, iterations, residual, record
     newton = sum(r["iterations"] for r in record)
     per_assembly = clock["assembly_s"] / max(clock["assemblies"], 1)
     per_factor = lin.factor_s / max(lin.factorisations, 1)
-    limit = newton * (per_assembly + per_factor + lin.solve_s / max(lin.solves, 1)) + clock["setup_s"]
-    accounted = clock["setup_s"] + clock["assembly_s"] + clock["residual_s"] + lin.factor_s + lin.solve_s
+    direct_solves = max(lin.solves - lin.krylov_iterations, 1)
+    per_solve = (lin.solve_s - lin.krylov_solve_s) / direct_solves
+    limit = newton * (per_assembly + per_factor + per_solve) + clock["setup_s"] + lin.analysis_s
+    accounted = (clock["setup_s"] + clock["assembly_s"] + clock["residual_s"] + lin.analysis_s + lin.factor_s
+                 + lin.solve_s + lin.krylov_s)
     cost = {**clock, **{k: val for k, val in lin.as_dict().items() if k != "method"},
             "other_s": max(seconds - accounted, 0.0), "newton_iterations": int(newton),
             "iterations_per_step": [r["iterations"] for r in record if r["accepted"]],
@@ -316,16 +344,76 @@ def _result(plate, material, disc, u, converged, s, iterations, residual, record
                        connectivity=disc.edofs)
 
 
-def _newton(state, u, free, scale, tol, max_iter, factor, lin, reuse):
+class _TangentSolver:
+    """Newton steps ``K du = -f`` with a factorisation kept across iterations and load steps.
+
+    With ``reuse`` the last factorisation preconditions GMRES on the current tangent (an inexact
+    Newton step to the forcing term ``eta``). The tangent is factorised afresh, and the step solved
+    with it, when GMRES does not reach ``eta`` within the cap (what one factorisation costs in Krylov
+    iterations, as measured so far: :data:`KRYLOV_MAX` before that), when its step does not go
+    downhill, or when the last Krylov solve needed more than half the cap (the factorisation has
+    aged). Without ``reuse`` every step factorises its tangent (the limit of the cost split).
+    """
+
+    def __init__(self, factor, cost, reuse):
+        self.factor, self.cost, self.reuse = factor, cost, reuse
+        self.precondition = None
+        self.aged = False
+
+    def cap(self) -> int:
+        c = self.cost
+        if not (c.factorisations and c.krylov_iterations):
+            return KRYLOV_MAX
+        per_factor = c.factor_s / c.factorisations
+        per_iteration = (c.krylov_s + c.krylov_solve_s) / c.krylov_iterations
+        return int(np.clip(per_factor / max(per_iteration, 1e-12), *KRYLOV_RANGE))
+
+    def modified_step(self, rhs):
+        """A step with the kept factorisation alone, no tangent (modified Newton), and its slope;
+        ``(None, None)`` without one, or where it does not go downhill."""
+        if not self.reuse or self.precondition is None:
+            return None, None
+        du = self.precondition(rhs, self.cost)
+        slope = float(-rhs @ du)
+        if np.all(np.isfinite(du)) and slope < 0:
+            return du, slope
+        return None, None
+
+    def step(self, K, rhs, eta):
+        """The step and its slope ``-rhs . du``, and whether the tangent was factorised for it;
+        ``(None, slope, True)`` when no factorisation gave a step downhill."""
+        if self.reuse and self.precondition is not None and not self.aged:
+            cap = self.cap()
+            kr = gmres(K, rhs, self.precondition, self.cost, rtol=eta, maxiter=cap)
+            slope = float(-rhs @ kr.x)
+            if kr.converged and slope < 0:
+                self.aged = kr.iterations > cap // 2
+                return kr.x, slope, False
+        self.precondition, slope, du = _factor_downhill(K, rhs, self.factor, self.cost)
+        self.aged = False
+        return du, slope, True
+
+
+def _forcing(eta_prev, rate, r, tol):
+    """Eisenstat-Walker forcing term (choice 2, safeguarded), not below what the stopping test needs."""
+    eta = EW_GAMMA * rate ** EW_ALPHA
+    floor = EW_GAMMA * eta_prev ** EW_ALPHA
+    if floor > 0.1:
+        eta = max(eta, floor)
+    return float(min(max(eta, 0.5 * tol / r), ETA_MAX))
+
+
+def _newton(state, u, free, scale, tol, max_iter, tangent_solver):
     """Newton iterations on one load level; returns ``(ok, u, iterations, residual)``.
 
-    Each iteration solves with the tangent's factorisation and takes a backtracking line search on the
-    energy. With ``reuse`` a factorisation serves further iterations while each cuts the residual by
-    :data:`REUSE_RATE` or more (a modified Newton step); otherwise, and whenever the old tangent's step
-    does not go downhill, the tangent is assembled and factorised afresh, at most ``max_iter`` times.
-    An indefinite tangent is shifted by a multiple of its diagonal until the step goes downhill.
-    Converged when the residual (relative to ``scale``) is below ``tol``, or below ``1000 tol`` while
-    the update has stalled at round-off.
+    Each iteration assembles the tangent at the current state and solves for the step
+    (:class:`_TangentSolver`: exactly with a fresh factorisation, or inexactly by GMRES preconditioned
+    with a kept one, to the Eisenstat-Walker forcing term), then takes a backtracking line search on
+    the energy; after an iteration that cut the residual by :data:`REUSE_RATE` or more the step is
+    the kept factorisation's alone, without a tangent (modified Newton). An indefinite tangent is
+    shifted by a multiple of its diagonal until the step goes downhill. Converged when the residual
+    (relative to ``scale``) is below ``tol``, or below ``1000 tol`` while the update has stalled at
+    round-off; not converged after ``max_iter`` tangents or ``3 max_iter`` iterations.
     """
     u = u.copy()
     energy, f, K = state(u, True)
@@ -334,28 +422,23 @@ def _newton(state, u, free, scale, tol, max_iter, factor, lin, reuse):
     r = np.linalg.norm(f[free]) / scale
     if r < tol:
         return True, u, 0, r
-    solve, fresh, rate = None, False, 1.0
-    factorisations, it = 0, 0
-    while factorisations < max_iter or (solve is not None and rate < REUSE_RATE):
+    eta, rate = ETA_MAX, 1.0
+    it = tangents = 0
+    while tangents < max_iter and it < 3 * max_iter:
         it += 1
-        if it > 4 * max_iter:
-            break
         rhs = -f[free]
-        if solve is None or not reuse or rate >= REUSE_RATE:
+        du, kind = None, "modified"
+        if rate < REUSE_RATE:  # the kept factorisation alone (no tangent) still converges fast
+            du, slope = tangent_solver.modified_step(rhs)
+        if du is None:
             if K is None:
                 energy, f, K = state(u, True)
-            solve, slope, du = _factor_downhill(K[free][:, free], rhs, factor, lin)
-            factorisations += 1
-            fresh = True
-            if solve is None:
-                return False, u, it, r
-        else:
-            du = solve(rhs, lin)
-            slope = float(-rhs @ du)
-            fresh = False
-            if not (np.all(np.isfinite(du)) and slope < 0):  # the old tangent points uphill: a new one
-                solve, rate, K = None, 1.0, None
-                continue
+            tangents += 1
+            eta = _forcing(eta, rate, r, tol) if tangents > 1 else ETA_MAX
+            du, slope, fresh = tangent_solver.step(K, rhs, eta)
+            kind = "factorised" if fresh else "GMRES"
+        if du is None:
+            return False, u, it, r
         step = np.zeros_like(u)
         step[free] = du
         beta = 1.0
@@ -369,12 +452,11 @@ def _newton(state, u, free, scale, tol, max_iter, factor, lin, reuse):
         update = beta * np.linalg.norm(du) / max(np.linalg.norm(u[free]), 1e-300)
         energy, f, K = e_try, f_try, None
         rate, r = r_try / r, r_try
+        log.debug("iteration %d: residual %.3e (eta %.2e, step %.3g, %s)", it, r, eta, beta, kind)
         if not np.isfinite(r):
             return False, u, it, r
         if r < tol or (r < 1e3 * tol and update < 1e-11):
             return True, u, it, r
-        if not fresh and rate >= 1.0:  # a stale factorisation stalled: refactor next time
-            solve = None
     return False, u, it, r
 
 
@@ -384,7 +466,7 @@ def _factor_downhill(A, rhs, factor, lin):
     shift = 0.0
     while True:
         try:
-            solve = factor(A + shift * sp.diags(A.diagonal()) if shift else A, lin)
+            solve = factor(A.shifted(shift) if shift else A, lin)
             du = solve(rhs, lin)
         except RuntimeError:  # singular tangent
             du = np.full(rhs.shape, np.nan)

@@ -139,8 +139,9 @@ def test_amg_and_direct_solvers_agree_and_report_their_cost():
 def test_reused_factorisations_reach_the_same_shape_for_less():
     plate = _plate(refine=1)
     mat = rf.BilayerMaterial(eigenstrain=-0.1)
-    plain = rf.solve_plate(plate, mat, reuse=False)
-    modified = rf.solve_plate(plate, mat, reuse=True)
+    # both well inside the stopping test, so that their difference is the solver's, not the tolerance's
+    plain = rf.solve_plate(plate, mat, reuse=False, tol=1e-10)
+    modified = rf.solve_plate(plate, mat, reuse=True, tol=1e-10)
     assert plain.converged and modified.converged
     assert np.abs(plain.displacement - modified.displacement).max() < 1e-6 * np.abs(plain.displacement).max()
     c = plain.cost
@@ -150,6 +151,99 @@ def test_reused_factorisations_reach_the_same_shape_for_less():
     m = modified.cost
     assert m["factorisations"] <= m["newton_iterations"]
     assert m["factorisations"] < c["factorisations"], (m["factorisations"], c["factorisations"])
+
+
+def test_kept_factorisations_and_one_load_step_reach_the_shape_of_plain_newton():
+    # inexact Newton (GMRES preconditioned by kept factorisations), all the eigenstrain in one step,
+    # against plain Newton over four load steps with a factorisation every iteration: the same
+    # stopping test, the same shape to well within what the stopping test allows
+    plate = _plate(("RTS", "SBR"), refine=2)
+    mat = rf.BilayerMaterial()  # the full calibrated eigenstrain: a strongly nonlinear curl
+    fast = rf.solve_plate(plate, mat, steps=1)
+    plain = rf.solve_plate(plate, mat, steps=4, reuse=False)
+    assert fast.converged and plain.converged
+    assert fast.residual < 1e-8 and plain.residual < 1e-8
+    size = np.abs(plain.displacement).max()
+    assert size > 0.1  # a large deflection, not a linear problem
+    assert np.abs(fast.displacement - plain.displacement).max() < 1e-5 * size
+    f, c = fast.cost, plain.cost
+    assert c["factorisations"] == c["newton_iterations"]  # the limit: one per iteration
+    assert f["krylov_iterations"] > 0 and f["krylov_solves"] > 0
+    assert f["factorisations"] < f["newton_iterations"], f
+    assert f["assemblies"] <= f["newton_iterations"]  # no tangent for a modified Newton step
+    assert f["analyses"] == 1 or fast.solver != "pardiso"  # one pattern, analysed once
+    parts = ("setup_s", "assembly_s", "residual_s", "analysis_s", "factor_s", "solve_s", "krylov_s", "other_s")
+    assert sum(f[k] for k in parts) == pytest.approx(fast.seconds, rel=0.02)  # the split adds up
+    assert 0.0 <= f["krylov_solve_s"] <= f["solve_s"]
+
+
+def test_gmres_reaches_its_tolerance_on_the_true_residual():
+    import scipy.sparse as sp
+
+    from reference_fem.linear_solvers import LinearCost, SymmetricCSR, gmres
+
+    rng = np.random.default_rng(3)
+    n = 300
+    R = sp.random(n, n, density=0.03, random_state=4)
+    A = (R + R.T + sp.diags(np.full(n, 6.0))).tocsr()
+    b = rng.standard_normal(n)
+    M = np.linalg.inv((A + sp.diags(rng.uniform(0.0, 1.0, n))).toarray())  # a perturbed exact inverse
+    cost = LinearCost()
+    res = gmres(SymmetricCSR(sp.triu(A, format="csr")), b, lambda r, c: M @ r, cost, rtol=1e-9, maxiter=40)
+    true = np.linalg.norm(A @ res.x - b) / np.linalg.norm(b)
+    assert res.converged and true < 1e-9
+    assert res.residual == pytest.approx(true, rel=1e-3, abs=1e-12)
+    assert cost.krylov_iterations == res.iterations < 40
+    short = gmres(A, b, lambda r, c: r, LinearCost(), rtol=1e-9, maxiter=3)  # no preconditioner, 3 steps
+    assert not short.converged and short.iterations == 3
+    assert short.residual == pytest.approx(np.linalg.norm(A @ short.x - b) / np.linalg.norm(b), rel=1e-6)
+
+
+def test_tangent_assembled_on_the_free_upper_pattern_is_the_sliced_matrix():
+    import scipy.sparse as sp
+
+    from reference_fem._kernel import Discretisation, neohookean_state
+    from reference_fem.linear_solvers import SymmetricCSR
+    from reference_fem.plate_solve import fixed_dofs, plate_fields
+
+    plate = _plate()
+    disc = Discretisation(plate, "hex2")
+    free = np.setdiff1d(np.arange(disc.ndofs), fixed_dofs(plate, disc.X))
+    lam, mu, G, _ = plate_fields(plate, rf.BilayerMaterial(), disc.n_el, scale=0.5)
+    u = 0.01 * np.random.default_rng(5).standard_normal(disc.ndofs)
+    e, f, K = neohookean_state(disc, u, lam, mu, G)
+    e2, f2, U = neohookean_state(disc, u, lam, mu, G, pattern=disc.pattern(free, upper=True))
+    assert e2 == e and np.array_equal(f2, f)
+    ref = sp.triu(K[free][:, free], format="csr")
+    ref.sort_indices()
+    assert np.array_equal(U.indptr, ref.indptr) and np.array_equal(U.indices, ref.indices)
+    assert np.abs(U.data - ref.data).max() <= 1e-12 * np.abs(ref.data).max()
+    x = np.random.default_rng(6).standard_normal(free.size)
+    A = K[free][:, free]
+    assert np.abs(SymmetricCSR(U).matvec(x) - A @ x).max() <= 1e-12 * np.abs(A @ x).max()
+
+
+def test_pardiso_analyses_a_pattern_once_and_refuses_a_replaced_factorisation():
+    pytest.importorskip("pypardiso")
+    import scipy.sparse as sp
+
+    from reference_fem.linear_solvers import LinearCost, SymmetricCSR, make_solver
+
+    factor, method = make_solver("direct", 50)
+    assert method == "pardiso"
+    n = 50
+    main = np.full(n, 4.0)
+    A = sp.diags([main, -np.ones(n - 1), -np.ones(n - 1)], [0, 1, -1], format="csr")
+    B = (A + sp.diags(np.linspace(0.0, 1.0, n))).tocsr()
+    b = np.random.default_rng(7).standard_normal(n)
+    cost = LinearCost()
+    solve_a = factor(SymmetricCSR(sp.triu(A, format="csr")), cost)
+    assert np.abs(A @ solve_a(b, cost) - b).max() < 1e-12
+    solve_b = factor(B, cost)  # the same pattern: numerical factorisation only
+    assert np.abs(B @ solve_b(b, cost) - b).max() < 1e-12
+    assert (cost.analyses, cost.factorisations, cost.solves) == (1, 2, 2)
+    with pytest.raises(RuntimeError, match="replaced"):
+        solve_a(b, cost)
 
 
 def test_clamped_edge_stays_put():
