@@ -12,7 +12,7 @@ points both models have:
 - a deviation map: the distance at every vertex (PNG, and a VTU of GDFE's film with the field
   ``deviation_mm``), and its mean over the cells of each material (where the coat is);
 - GDFE with R fitted to the FEM's shape (the RMS distance minimised over one R), beside Eq. 3's;
-- where the FEM is refined (the twist and the inverse designs at default, and the saddle at fine), each model's own
+- where the FEM is refined (the Figure 8 plates and the inverse designs), each model's own
   refinement sequence (FEM: 1, 2 elements per cell; GDFE: cells split 1, 2, 4 times), the error of
   each level against that model's finest, and the time each needs at equal shape error.
 
@@ -60,11 +60,13 @@ SETTINGS = {
                "fem_refine": {}, "gdfe_split": (1,), "fit_tol": 0.01},
     "default": {"parts": ("twist", "dome", "saddle", "tube", "box", "inverse_dome", "inverse_saddle"),
                 "fig08_cells": 16, "fig08_pixel": 0.5, "box_pixel": 0.5,
-                "fem_refine": {"twist": (1, 2), "inverse_dome": (1, 2), "inverse_saddle": (1, 2)},
+                "fem_refine": {"twist": (1, 2), "dome": (1, 2), "saddle": (1, 2), "inverse_dome": (1, 2),
+                               "inverse_saddle": (1, 2)},
                 "gdfe_split": (1, 2, 4), "fit_tol": 0.003, "inverse": INVERSE},
     "fine": {"parts": ("twist", "dome", "saddle", "tube", "box", "inverse_dome", "inverse_saddle"),
              "fig08_cells": 32, "fig08_pixel": 0.25, "box_pixel": 0.5,
-             "fem_refine": {"twist": (1, 2), "saddle": (1, 2), "inverse_dome": (1, 2), "inverse_saddle": (1, 2)},
+             "fem_refine": {"twist": (1, 2), "dome": (1, 2), "saddle": (1, 2), "inverse_dome": (1, 2),
+                            "inverse_saddle": (1, 2)},
              "gdfe_split": (1, 2, 4), "fit_tol": 0.001, "inverse": INVERSE},
 }
 
