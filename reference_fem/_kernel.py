@@ -28,10 +28,14 @@ All loops run over chunks of elements; inside a chunk everything is one batched 
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import scipy.sparse as sp
 
 from gdfe._validation import GdfeError
+
+log = logging.getLogger(__name__)
 
 _ELEMENTS = {"hex1": ("ElementHex1", 2), "hex2": ("ElementHex2", 4), "hexs2": ("ElementHexS2", 4)}
 _CHUNK_BUDGET = 4.0e6  # doubles per chunk for the (elements, qp, basis, basis) arrays
@@ -418,3 +422,55 @@ def _neohookean_chunk(dphi, w, F, lam, mu, g, jst, tangent, dphi_t=None):
 
 #: The hyperelastic laws by name: ``state(disc, u, lam, mu, G, tangent=...)`` of each.
 STATES = {"svk": svk_state, "neohookean": neohookean_state}
+
+
+def load_continuation(solve_at, ndofs, steps, min_step, easy_iter, on_step=None):
+    """Adaptive load stepping of a nonlinear solve, the load factor ``s`` from 0 to 1.
+
+    Each step starts from the secant prediction of the last two accepted states; a step that
+    converges in at most ``easy_iter`` iterations doubles the next one (to at most the whole
+    load), a failed step is halved, and the stepping stops when a step falls below ``min_step``.
+
+    Parameters
+    ----------
+    solve_at : callable
+        ``solve_at(s, start) -> (ok, u, iterations, residual)``: the solve at load factor ``s``
+        from displacements ``start``.
+    ndofs : int
+    steps : int
+        The first step is ``1 / steps``.
+    min_step, easy_iter
+    on_step : callable, optional
+        ``on_step(s, ok, u, iterations, residual)`` after every step, accepted or not.
+
+    Returns
+    -------
+    u, s, iterations, residual, accepted
+        The last accepted displacements and load factor (1 when converged), the Newton
+        iterations of every step, the last residual and the number of accepted steps.
+    """
+    u = np.zeros(ndofs)
+    u_prev, s_prev = None, 0.0
+    s, ds = 0.0, 1.0 / steps
+    iterations, accepted, residual = 0, 0, 0.0
+    while s < 1.0 - 1e-12:
+        s_new = min(1.0, s + ds)
+        trial = u.copy()
+        if u_prev is not None:
+            trial += (s_new - s) / (s - s_prev) * (u - u_prev)
+        ok, trial, it, residual = solve_at(s_new, trial)
+        iterations += it
+        if ok:
+            u_prev, s_prev, u, s = u, s, trial, s_new
+            accepted += 1
+            if it <= easy_iter:
+                ds = min(2.0 * ds, 1.0)
+        else:
+            ds *= 0.5
+        if on_step is not None:
+            on_step(s_new, ok, u if ok else trial, it, residual)
+        if not ok:
+            log.info("load %.4f failed after %d iterations; step cut to %.4g", s_new, it, ds)
+            if ds < min_step:
+                break
+    return u, s, iterations, residual, accepted

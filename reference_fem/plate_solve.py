@@ -43,7 +43,7 @@ import numpy as np
 
 from gdfe import _validation as v
 from gdfe._validation import GdfeTypeError
-from ._kernel import STATES, Discretisation, eigenstrain_load, linear_system
+from ._kernel import STATES, Discretisation, eigenstrain_load, linear_system, load_continuation
 from .linear_solvers import LinearCost, SymmetricCSR, gmres, make_solver
 from .material import BilayerMaterial
 from .mesh import FILM
@@ -281,38 +281,24 @@ def solve_plate(plate: Plate, material: BilayerMaterial | None = None, *, elemen
         return energy, f, (None if K is None else SymmetricCSR(K))
 
     steps_solver = _TangentSolver(factor, lin, reuse)
-    u = np.zeros(disc.ndofs)
-    u_prev, s_prev = None, 0.0
-    s, ds = 0.0, 1.0 / steps
-    iterations = 0
-    residual = 0.0
-    while s < 1.0 - 1e-12:
-        s_new = min(1.0, s + ds)
+
+    def solve_at(s_new, trial):
         G = plate_fields(plate, material, disc.n_el, scale=s_new)[2]
-        trial = u.copy()
-        if u_prev is not None:
-            trial += (s_new - s) / (s - s_prev) * (u - u_prev)
-        ok, trial, it, residual = _newton(lambda w, tangent: state(w, G, tangent), trial, free, scale, tol,
-                                          max_iter, steps_solver)
-        iterations += it
+        return _newton(lambda w, tangent: state(w, G, tangent), trial, free, scale, tol, max_iter, steps_solver)
+
+    def on_step(s_new, ok, u, it, residual):
         step = {"load": float(s_new), "accepted": bool(ok), "iterations": int(it), "residual": float(residual)}
         record.append(step)
         if ok:
-            u_prev, s_prev, u, s = u, s, trial, s_new
             if keep_steps:
                 step["snapshot"] = len(snapshots)
                 snapshots.append(u.reshape(-1, 3).copy())
-            log.info("load %.4f converged in %d iterations (residual %.2e, %.1f s)", s, it, residual,
+            log.info("load %.4f converged in %d iterations (residual %.2e, %.1f s)", s_new, it, residual,
                      time.perf_counter() - t_start)
             if progress is not None:
-                progress(s, it, residual)
-            if it <= easy_iter:
-                ds = min(2.0 * ds, 1.0)
-        else:
-            ds *= 0.5
-            log.info("load %.4f failed after %d iterations; step cut to %.4g", s_new, it, ds)
-            if ds < min_step:
-                break
+                progress(s_new, it, residual)
+
+    u, s, iterations, residual, _ = load_continuation(solve_at, disc.ndofs, steps, min_step, easy_iter, on_step)
     converged = s >= 1.0 - 1e-12
     if not converged:
         log.warning("plate solve stopped at load factor %.4f", s)

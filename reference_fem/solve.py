@@ -22,7 +22,7 @@ import scipy.sparse.linalg as spla
 
 from gdfe import _validation as v
 from gdfe._validation import GdfeTypeError
-from ._kernel import STATES, Discretisation, element_fields, linear_system
+from ._kernel import STATES, Discretisation, element_fields, linear_system, load_continuation
 from .material import BilayerMaterial
 from .mesh import LayeredStrip
 
@@ -209,33 +209,19 @@ def solve_nonlinear(strip: LayeredStrip, material: BilayerMaterial, *, element: 
     _, f_lin = linear_system(disc, lam, mu, eps)
     scale = max(np.linalg.norm(f_lin[free]), 1e-300)
 
-    def state(u, tangent):
-        return STATES[model](disc, u, lam, mu, G, tangent=tangent)
-
-    u = np.zeros(disc.ndofs)
-    u_prev, s_prev = None, 0.0
-    s, ds = 0.0, 1.0 / steps
-    iterations, accepted = 0, 0
-    residual = 0.0
-    while s < 1.0 - 1e-12:
-        s_new = min(1.0, s + ds)
+    def solve_at(s_new, trial):
         G = element_fields(strip, material, disc, scale=s_new)[2]
-        trial = u.copy()
-        if u_prev is not None:
-            trial += (s_new - s) / (s - s_prev) * (u - u_prev)
-        ok, trial, it, residual = _newton(disc, trial, state, free, scale, tol, max_iter)
-        iterations += it
+
+        def state(u, tangent):
+            return STATES[model](disc, u, lam, mu, G, tangent=tangent)
+
+        return _newton(disc, trial, state, free, scale, tol, max_iter)
+
+    def on_step(s_new, ok, u, it, residual):
         if ok:
-            u_prev, s_prev, u, s = u, s, trial, s_new
-            accepted += 1
-            log.info("load %.4f converged in %d iterations (residual %.2e)", s, it, residual)
-            if it <= 4:
-                ds = min(2.0 * ds, 1.0)
-        else:
-            ds *= 0.5
-            log.info("load %.4f failed after %d iterations; step cut to %.4g", s_new, it, ds)
-            if ds < min_step:
-                break
+            log.info("load %.4f converged in %d iterations (residual %.2e)", s_new, it, residual)
+
+    u, s, iterations, residual, accepted = load_continuation(solve_at, disc.ndofs, steps, min_step, 4, on_step)
     converged = s >= 1.0 - 1e-12
     if not converged:
         log.warning("nonlinear solve stopped at load factor %.4f", s)
