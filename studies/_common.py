@@ -142,6 +142,15 @@ def error_against_finest(rows, key="alpha_rad", out="error_rad"):
     return rows
 
 
+def save_figure(fig, out, name, dpi=120):
+    """Lay out ``fig``, write it to ``out/name.png`` and close it."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    fig.savefig(Path(out) / f"{name}.png", dpi=dpi)
+    plt.close(fig)
+
+
 def finish(result, out, plot):
     """Write ``NAME.json`` and ``NAME.png`` (via ``plot``) into ``out``; return ``result``."""
     if out is None:

@@ -46,7 +46,7 @@ import time
 
 import numpy as np
 
-from studies._common import check_resolution, finish, headline, main_of, progress, pyplot
+from studies._common import check_resolution, finish, headline, main_of, progress, pyplot, save_figure
 
 log = logging.getLogger(__name__)
 
@@ -208,8 +208,6 @@ def _verdict(by_kind):
 
 def plot(result, out):
     """Accuracy per generator with Wilson intervals, and each scan's visibility against the floor."""
-    from pathlib import Path
-
     plt = pyplot()
     gens = list(result["by_generator"])
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.2))
@@ -238,9 +236,7 @@ def plot(result, out):
     bx.legend(fontsize=8)
     bx.set_title("each scan's effect against the floor")
     fig.suptitle(f"blind shape diagnosis: {result['summary']['verdict']}", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(Path(out) / f"{NAME}.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, out, NAME)
 
 
 main = main_of(__name__)

@@ -36,7 +36,7 @@ import time
 
 import numpy as np
 
-from studies._common import check_resolution, finish, headline, main_of, pyplot
+from studies._common import check_resolution, finish, headline, main_of, pyplot, save_figure
 
 NAME = "plan"
 SIGMA = 0.03
@@ -210,8 +210,6 @@ def run(resolution="default", out=None):
 
 
 def plot(result, out):
-    from pathlib import Path
-
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(8, 4.5))
     m = result["max_added"]
@@ -235,9 +233,7 @@ def plot(result, out):
                  f"(noise {result['sigma_rad']:g} rad): plan median {median_text(r['plan']['median_tests'])}, "
                  f"random {median_text(r['random']['median_tests'])}", fontsize=10)
     ax.legend()
-    fig.tight_layout()
-    fig.savefig(Path(out) / f"{NAME}.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, out, NAME)
 
 
 main = main_of(__name__)

@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from gdfe import paper
-from studies._common import check_resolution, finish, headline, main_of, pyplot
+from studies._common import check_resolution, finish, headline, main_of, pyplot, save_figure
 
 NAME = "uncertainty"
 LEVEL = 0.9
@@ -316,9 +316,7 @@ def plot(result, out):
     ax.set_title(f"tube: turn {tube['turn_interval_rad'][0]:.2f}-{tube['turn_interval_rad'][1]:.2f} rad "
                  f"(paper's {tube['paper_turn_rad']:.2f})")
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(Path(out) / f"{NAME}.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, out, NAME)
 
 
 main = main_of(__name__)
