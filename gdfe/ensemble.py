@@ -18,7 +18,7 @@ draws, after each draw is aligned to the nominal shape by the rigid motion that 
 
 A draw's start can do better than the nominal fold. The first :data:`PILOT` draws are folded
 from it; each later draw starts from the **secant prediction** of its shape: its cells'
-contractions ``c`` (their ratios ``R`` and any explicit per-face contraction) are written as
+contractions ``c`` (of each cell's top and bottom face) are written as
 the least-squares combination ``c - c0 = sum_j a_j (c_j - c0)`` of the pilots' (``c0`` the
 nominal model's), and its start is ``x0 + sum_j a_j (x_j - x0)``, the same combination of the
 pilots' folds (each aligned rigidly to the nominal ``x0`` first). Exact where the fold is linear
@@ -224,11 +224,10 @@ def _fold_one(item):
 
 
 def _contractions(design):
-    """A design's cell contractions as one vector: the ratios ``R`` and any explicit per-face contraction."""
-    parts = [np.asarray(design.R, float).ravel()]
-    if getattr(design, "contraction", None) is not None:
-        parts.append(np.asarray(design.contraction, float).ravel())
-    return np.concatenate(parts)
+    """A design's cell contractions as one vector: each cell's top and bottom face
+    (:meth:`Design.face_contraction`, the explicit per-face contraction of a mechanism where a
+    member sets one, else from ``R``), the same length for every member of a model."""
+    return np.concatenate(design.face_contraction())
 
 
 def secant_starts(c0, x0, pilot_c, pilot_x, targets):

@@ -11,6 +11,7 @@ import gdfe
 from gdfe._validation import GdfeError
 from gdfe.cli import main
 from gdfe.ensemble import PILOT, align_rigidly, fold_ensemble, has_predictive_content, secant_starts, wilson_interval
+from gdfe.model import DeformationModel
 from gdfe.predict import draw_models
 
 L, D = 1.6, 0.33
@@ -214,3 +215,15 @@ def test_simulate_uncertainty_of_a_strip_measures_its_turn_and_end_gap(model_fil
     # the strip's turn is the sum of its four folds
     assert turn["nominal"] == pytest.approx(sum(a["fold_angle_rad"] for a in u["fold_angles"]), rel=0.05)
     assert turn["interval"][0] < turn["interval"][1] and u["measures"]["end_gap_mm"]["nominal"] > 0
+
+
+def test_secant_starts_take_members_with_and_without_a_layout_mechanism(model_file):
+    """A named set mixing a member whose mechanism sets per-face contractions (saturation) with one
+    that does not: every draw is described by the same vector, and the ensemble folds."""
+    from gdfe.ensemble import _contractions
+
+    base = gdfe.load_model(model_file)
+    design = _hinge(base)
+    sat = DeformationModel(principle="eq1", params={"K": 0.3706, "alpha_max": 1.5}, mechanisms=("saturation",))
+    assert sat.geometric and not base.geometric
+    assert _contractions(sat.apply(design)).shape == _contractions(base.apply(design)).shape
