@@ -38,7 +38,9 @@ from gdfe._validation import GdfeError
 log = logging.getLogger(__name__)
 
 _ELEMENTS = {"hex1": ("ElementHex1", 2), "hex2": ("ElementHex2", 4), "hexs2": ("ElementHexS2", 4)}
-_CHUNK_BUDGET = 4.0e6  # doubles per chunk for the (elements, qp, basis, basis) arrays
+#: doubles per chunk of the (elements, qp, basis, basis) arrays: 8 MB, so that a chunk's temporaries
+#: stay in cache-friendly sizes (the 10^4-element plate's tangent: 2.5 s per assembly, 4.0 s at 32 MB)
+_CHUNK_BUDGET = 1.0e6
 
 
 class Discretisation:
@@ -114,9 +116,13 @@ class SparsePattern:
 
     Built from the node pairs that share an element (3 x 3 blocks of vector dofs), so the sort that
     finds the pattern runs over ``n_el n_bf^2`` keys instead of ``9 n_el n_bf^2``. Every element
-    matrix entry gets the index of its CSR entry (or of a discarded slot, for entries outside
-    ``keep`` or below the diagonal when ``upper``), so an assembly is one ``bincount``, with no
-    COO-to-CSR conversion, slicing or triangle extraction.
+    matrix entry gets the index of its CSR entry (or none, for entries outside ``keep``); with
+    ``upper`` only the element matrices' own upper triangles are scattered (:attr:`local`). The
+    scatter is kept as a sparse 0/1 matrix, its rows the CSR entries and its columns the element
+    entries, so an assembly is one sparse matrix-vector product, with no COO-to-CSR conversion,
+    slicing or triangle extraction. Its rows gather element entries of neighbouring elements, so the
+    product reads nearly in order: on the 10^4-element plate it takes 0.13 s against 0.86 s for a
+    ``bincount`` into the same entries.
 
     Parameters
     ----------
@@ -131,6 +137,12 @@ class SparsePattern:
     indptr, indices : int arrays
         The CSR structure (sorted column indices), shared by every matrix assembled on it.
     shape : (int, int)
+    local : int array or None
+        With ``upper``, the flat indices ``r n + c`` (``r <= c``) of the element matrices' entries
+        that are scattered: a symmetric element matrix gives the global upper triangle from its
+        own, entry ``(r, c)`` going to the (smaller, larger) of its global dofs, half the entries.
+    scatter : csr_matrix
+        ``(nnz, element entries)``, 0/1: the CSR data of a matrix is ``scatter @ Ke.ravel()``.
     """
 
     def __init__(self, disc, keep=None, upper=False):
@@ -184,7 +196,10 @@ class SparsePattern:
         self.nnz = int(self.indptr[-1])
         # CSR index of every element entry (e, a, i, b, k): block (a, b) at rank j in block row p
         base = (9 * bptr[brow] + 3 * rank)  # first entry of each block in row 3p
-        target = np.empty(disc.n_el * (3 * nb) ** 2, dtype=np.int64 if nnz >= 2**31 else np.int32)
+        n = 3 * nb
+        self.local = np.flatnonzero(np.triu(np.ones((n, n), bool))) if upper else None
+        width = n * n if self.local is None else self.local.size
+        target = np.empty(disc.n_el * width, dtype=np.int64 if nnz >= 2**31 else np.int32)
         step = max(1, 2_000_000 // (9 * nb * nb))
         for s in range(0, disc.n_el, step):
             e = slice(s, min(s + step, disc.n_el))
@@ -193,16 +208,33 @@ class SparsePattern:
             p = edofs[e]
             pos = (base[b] + (3 * per_row[p])[:, :, None, None, None] * np.arange(3)[None, None, :, None, None]
                    + np.arange(3)[None, None, None, None, :])
-            pos = pos.reshape(-1)
-            target[e.start * (3 * nb) ** 2:e.stop * (3 * nb) ** 2] = pos if select is None else select[pos]
-        self.target = target
-        self.dump = select is not None  # entries outside the pattern go to one extra slot
+            pos = pos.reshape(c, n * n)
+            if select is None:
+                chunk = pos
+            elif self.local is None:
+                chunk = select[pos]
+            else:  # entry (r, c) and its mirror (c, r): exactly one lies in the upper triangle, or neither is kept
+                mine = select[pos[:, self.local]]
+                mirror = select[pos.reshape(c, n, n).transpose(0, 2, 1).reshape(c, n * n)[:, self.local]]
+                chunk = np.where(mine < self.nnz, mine, mirror)
+            target[e.start * width:e.stop * width] = chunk.reshape(-1)
+        # the scatter: row j of the CSR entries sums the element entries whose target is j (a stable
+        # sort keeps each row's element entries in element order); the discarded slot nnz is left out
+        order = np.argsort(target, kind="stable")
+        counts = np.bincount(target, minlength=self.nnz + 1)[:self.nnz]
+        kept_entries = int(counts.sum())
+        idx = np.int32 if target.size < 2**31 else np.int64
+        self.scatter = sp.csr_matrix((np.ones(kept_entries), order[:kept_entries].astype(idx),
+                                      np.concatenate([[0], np.cumsum(counts)]).astype(idx)),
+                                     shape=(self.nnz, target.size))
+        del order, target
 
     def assemble(self, Ke) -> sp.csr_matrix:
-        """The CSR matrix of element matrices ``Ke`` ``(n_el, 3 n_bf, 3 n_bf)`` on this pattern."""
-        data = np.bincount(self.target, weights=Ke.reshape(-1), minlength=self.nnz + self.dump)
-        if self.dump:
-            data = data[:self.nnz]
+        """The CSR matrix of element matrices ``Ke`` ``(n_el, 3 n_bf, 3 n_bf)`` on this pattern (with
+        :attr:`local`, of their upper triangles ``Ke[:, local]``, ``(n_el, local.size)``, or whole)."""
+        if self.local is not None and Ke.reshape(Ke.shape[0], -1).shape[1] != self.local.size:
+            Ke = Ke.reshape(Ke.shape[0], -1)[:, self.local]
+        data = self.scatter @ Ke.reshape(-1)
         A = sp.csr_matrix((data, self.indices, self.indptr), shape=self.shape)
         A.has_sorted_indices = True
         return A
@@ -345,7 +377,8 @@ def _state(disc, u, lam, mu, G, tangent, chunk, pattern=None):
     Jst = np.prod(1.0 / G, axis=1)
     energy = 0.0
     fe = np.empty((disc.n_el, disc.n_bf, 3))
-    Ke = np.empty((disc.n_el, n, n)) if tangent else None
+    local = None if pattern is None else pattern.local  # only the upper triangles, when that is all it takes
+    Ke = None if not tangent else np.empty((disc.n_el, n * n if local is None else local.size))
     for s in disc.chunks():
         dphi, w, dphi_t = disc.dphi[s], disc.w[s], disc.dphi_t[s]
         c, q = w.shape
@@ -364,7 +397,7 @@ def _state(disc, u, lam, mu, G, tangent, chunk, pattern=None):
         Pw = (P * w[:, :, None, None]).transpose(0, 1, 3, 2).reshape(c, 3 * q, 3)
         fe[s] = np.matmul(dphi_t, Pw)
         if tangent:
-            Ke[s] = K
+            Ke[s] = K.reshape(c, n * n) if local is None else K.reshape(c, n * n)[:, local]
     return energy, disc.vector(fe), (disc.sparse(Ke, pattern) if tangent else None)
 
 
