@@ -134,3 +134,15 @@ def check_contraction(c):
     c = np.real(np.ravel(np.asarray(c)))
     worst = c[int(np.argmax(np.maximum(c - MAX_CONTRACTION, -c)))]
     return check("contraction", worst)
+
+# The film's in-plane anisotropy and the coats' registration, the forms of a shape diagnosis
+# beyond one region's contraction (gdfe.diagnosis.shape_forms).
+RANGES["isotropy"] = Range(
+    0.5, 1.0, "",
+    "the weaker in-plane shrink of the film over the stronger: a biaxially pre-strained polystyrene film is drawn "
+    "along both axes, and lots whose two draw ratios differ shrink tens of percent less across the draw than along "
+    "it; a film that shrinks less than half as much one way as the other is uniaxially oriented, another material")
+RANGES["coat_offset"] = Range(
+    -3.0, 3.0, "pixels",
+    "a coat printed on a film laid by hand in the printer's vat, or placed by its corner on the build plate, misses "
+    "its mask by up to a few of the printer's pixels; a coat further off is misplaced, not misregistered")

@@ -12,7 +12,8 @@ from studies import blind_shape_diagnosis as bsd
 from studies.shape_generators import GENERATORS, KINDS, PlateDesign, bending_change, plate_design, scan_part
 from studies.shape_generators.calibration import fold_between_panels
 from studies.shape_generators.designs import DESIGNS
-from studies.shape_generators.parts import anisotropic_eigenstrain, coat_stiffness, offset_material, solve_part
+from studies.shape_generators.parts import (anisotropic_eigenstrain, coat_stiffness, gradient_eigenstrain,
+                                            offset_material, solve_part)
 
 GEN_DIR = Path(__file__).resolve().parents[1] / "studies" / "shape_generators"
 R_HINGE = 0.9
@@ -27,19 +28,27 @@ def test_generators_do_not_import_the_diagnosis():
             assert not n.startswith("gdfe.diagnosis"), f"{f.name} imports {n}"
 
 
-def test_every_kind_has_a_generator_and_catalogue_answers_name_a_hinge():
+def test_every_kind_has_a_generator_and_catalogue_answers_name_a_form():
     assert {g.kind for g in GENERATORS.values()} == set(KINDS)
+    assert GENERATORS["contraction_gradient"].kind == "outside"
     des = plate_design("strip")
     rng = np.random.default_rng(3)
     for g in GENERATORS.values():
         s = g.draw(rng, des)
         a = g.answer(s)
-        if g.kind == "catalogue":
+        if g.kind == "catalogue" and a["form"] == "region":
             assert a["says"] == "region" and a["region"] in des.hinges and a["bends"] == "less"
+        elif g.kind == "catalogue":
+            assert a["says"] == "form" and a["region"] is None
+            if a["form"] == "anisotropy":
+                assert a["weak_axis"] == "xy"[s["weak_axis"]]
+            else:
+                assert a["form"] == "offset"
+                assert (a["face"], a["axis"], a["pixels"]) == (s["face"], "xy"[s["axis"]], s["pixels"])
         else:
             assert a["region"] is None and a["says"] == ("no gap" if g.kind == "null" else "cannot say")
         for key, (lo, hi) in g.ranges.items():
-            v = abs(s[key]) if key == "pixels" else s[key]
+            v = abs(s[key]) if key in ("pixels", "spread") else s[key]
             assert lo <= v <= hi, (g.name, key, v)
 
 
@@ -93,6 +102,15 @@ def test_stiffness_and_eigenstrain_fields():
     m = rf.BilayerMaterial()
     e = anisotropic_eigenstrain(plate, m, 0.8, 1)
     assert np.allclose(e[:, 1] / e[:, 0], 0.8) and np.allclose(e[:, :2].mean(axis=1), m.eigenstrain_xyz[0])
+    film = np.asarray(plate.ply) == FILM
+    g = gradient_eigenstrain(plate, m, 0.3, 0)
+    f = g[:, 0] / m.eigenstrain_xyz[0]
+    # linear along x, mean kept over the film, the two ends 0.3 of the mean apart
+    assert np.allclose(g, f[:, None] * np.asarray(m.eigenstrain_xyz)[None, :])
+    assert f[film].mean() == pytest.approx(1.0) and f[film].max() - f[film].min() == pytest.approx(0.3)
+    assert np.all(np.diff(f[film][np.argsort(plate.cell[film, 0], kind="stable")]) >= -1e-12)
+    assert np.allclose(gradient_eigenstrain(plate, m, 0.3, 1)[film & (plate.cell[:, 1] == 0), 0] / m.eigenstrain_xyz[0],
+                       1 - 0.15)
 
 
 def _hinge_specimen():
@@ -169,17 +187,21 @@ def test_null_scan_of_the_hinge_matches_its_gdfe_design(hinge_nominal):
 
 
 class _Dg:
-    def __init__(self, matches=True, named=(), fitted=None, R=0.9):
+    def __init__(self, matches=True, named=(), fitted=None, R=0.9, outcome=None, form=None, rivals=()):
         self.matches, self.named = matches, list(named)
         self.corrected_R = fitted or {}
         self._rows = {n: {"R_design": R} for n in ("hinge_a", "hinge_b")}
+        self.not_ruled_out = list(rivals)
+        self.outcome = outcome or ("cannot_tell" if rivals else "credited" if (named or form) else "no_form")
+        self.credited = ({"kind": "region", "params": {}} if named else
+                         {"kind": form[0], "params": form[1]} if form else None)
 
     def regions_by_name(self):
         return self._rows
 
 
 def test_scoring_by_the_declared_answers():
-    less = {"says": "region", "region": "hinge_a", "bends": "less"}
+    less = {"says": "region", "region": "hinge_a", "bends": "less", "form": "region"}
     said = bsd.said
     assert bsd.score(less, said(_Dg(named=["hinge_a"], fitted={"hinge_a": 0.95}))) == "right"
     assert bsd.score(less, said(_Dg(named=["hinge_a"], fitted={"hinge_a": 0.85}))) == "wrong"
@@ -188,14 +210,36 @@ def test_scoring_by_the_declared_answers():
                                     fitted={"hinge_a": 0.95, "hinge_b": 0.95}))) == "wrong"
     assert bsd.score(less, said(_Dg())) == "missed"
     assert bsd.score(less, said(_Dg(matches=False))) == "missed"
-    null = {"says": "no gap", "region": None, "bends": None}
+    assert bsd.score(less, said(_Dg(rivals=["contraction of hinge_a", "film anisotropy (weaker along y)"]))) == "missed"
+    aniso = ("anisotropy", {"weak_axis": "y", "ratio": 0.8})
+    assert bsd.score(less, said(_Dg(form=aniso))) == "wrong"
+    # an anisotropic film: the weaker axis
+    film = {"says": "form", "region": None, "bends": None, "form": "anisotropy", "weak_axis": "y"}
+    assert bsd.score(film, said(_Dg(form=aniso))) == "right"
+    assert bsd.score(film, said(_Dg(form=("anisotropy", {"weak_axis": "x", "ratio": 0.8})))) == "wrong"
+    assert bsd.score(film, said(_Dg(named=["hinge_a"], fitted={"hinge_a": 0.95}))) == "wrong"
+    assert bsd.score(film, said(_Dg(rivals=["a", "b"]))) == "missed"
+    # a coat offset: the face, the axis, the sign, within one pixel
+    off = {"says": "form", "region": None, "bends": None, "form": "offset", "face": "top", "axis": "x", "pixels": -2}
+    for params, outcome in [({"face": "top", "axis": "x", "pixels": -2}, "right"),
+                            ({"face": "top", "axis": "x", "pixels": -3}, "right"),
+                            ({"face": "top", "axis": "x", "pixels": -1}, "right"),
+                            ({"face": "top", "axis": "x", "pixels": 1}, "wrong"),
+                            ({"face": "bottom", "axis": "x", "pixels": -2}, "wrong"),
+                            ({"face": "top", "axis": "y", "pixels": -2}, "wrong")]:
+        assert bsd.score(off, said(_Dg(form=("offset", params)))) == outcome, params
+    null = {"says": "no gap", "region": None, "bends": None, "form": None}
     assert bsd.score(null, said(_Dg())) == "right_cannot_say"
+    assert bsd.score(null, said(_Dg(outcome="within_floor"))) == "right_cannot_say"
     assert bsd.score(null, said(_Dg(matches=False))) == "wrong"
     assert bsd.score(null, said(_Dg(named=["hinge_a"], fitted={"hinge_a": 0.95}))) == "wrong"
-    out = {"says": "cannot say", "region": None, "bends": None}
+    assert bsd.score(null, said(_Dg(rivals=["a", "b"]))) == "wrong"  # a gap, said to be one of two forms
+    out = {"says": "cannot say", "region": None, "bends": None, "form": None}
     assert bsd.score(out, said(_Dg())) == "right_cannot_say"
     assert bsd.score(out, said(_Dg(matches=False))) == "right_cannot_say"
+    assert bsd.score(out, said(_Dg(rivals=["a", "b"]))) == "right_cannot_say"
     assert bsd.score(out, said(_Dg(named=["hinge_b"], fitted={"hinge_b": 0.8}))) == "wrong"
+    assert bsd.score(out, said(_Dg(form=aniso))) == "wrong"
 
 
 def test_visibility_matches_points_by_their_place_in_the_print():
@@ -221,11 +265,17 @@ def test_accuracy_has_a_wilson_interval():
 
 @pytest.mark.slow
 def test_coarse_study(coarse_study):
-    """The coarse benchmark (three scans of the strip): every part converged, the declared answers
-    scored, headlines held, and the outputs written."""
+    """The coarse benchmark (four scans of the strip): every part converged, the declared answers
+    scored, headlines held, the floor taken from the calibration null, and the outputs written."""
     result, out = coarse_study("blind-shape-diagnosis")
     assert result["converged"]
-    assert [r["generator"] for r in result["records"]] == ["null", "thicker_coat", "anisotropic_film"]
+    assert [r["generator"] for r in result["records"]] == ["null", "thicker_coat", "anisotropic_film",
+                                                           "contraction_gradient"]
+    cal = result["calibration_nulls"]["strip"]
+    assert cal["matches"] and result["floor_mm"]["strip"] == cal["floor_mm"] > 0
+    # the calibration null is another scan of the same part than the scored null
+    assert all(r["floor_mm"] == cal["floor_mm"] for r in result["records"])
+    assert result["records"][0]["rms_before_mm"] != cal["floor_mm"]
     assert all(h["passed"] for h in result["headlines"]), result["headlines"]
     for r in result["records"]:
         assert r["outcome"] in bsd.OUTCOMES and r["fem"]["converged"]

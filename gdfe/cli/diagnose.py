@@ -71,6 +71,9 @@ def register(sub):
     p.add_argument("--align", choices=ALIGNMENTS, default="auto",
                    help="correspondences (a mesh of the design) or ICP; default: decide from the file")
     p.add_argument("--no-correct", action="store_true", help="skip the per-region correction fit")
+    p.add_argument("--floor", type=float, metavar="MM",
+                   help="model floor: the RMS deviation [mm] of a scan of a part printed as designed from its "
+                        "simulation; a gap is localised only beyond it")
     p.set_defaults(func=_cmd_diagnose_shape)
 
 
@@ -151,7 +154,8 @@ def _cmd_diagnose_shape(args):
 def _diagnose_shape(args, folder):
     from gdfe.diagnosis.shape import diagnose_shape
 
-    res = diagnose_shape(args.design, args.measured, align=args.align, correct=not args.no_correct)
+    res = diagnose_shape(args.design, args.measured, align=args.align, correct=not args.no_correct,
+                         floor=args.floor)
     obj = res.as_dict()
     text = res.text()
     if folder is not None:

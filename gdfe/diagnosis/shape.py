@@ -34,12 +34,16 @@
    over the whole part). The deviation of a set of points is the RMS distance
    ``sqrt(mean_i d_i^2)``; of an element, over its 8 vertices (correspondences) or over the
    measured points whose closest surface point lies on its faces (ICP);
-5. **localises** the gap by refitting each contracting region's contraction ratio alone
-   (a bounded 1-D search with a GDFE re-simulation per evaluation) and naming the region
-   whose correction removes the most deviation; further regions are named while each
-   lowers the remaining RMS deviation by at least :data:`NAME_GAIN`, i.e. while
-   ``rms_new <= (1 - NAME_GAIN) rms``; the named regions are then refitted together, and
-   the deviation before and after is reported.
+5. **localises** the gap by fitting *forms* (:mod:`gdfe.diagnosis.shape_forms`): each
+   contracting region's contraction ratio alone (a bounded 1-D search with a GDFE
+   re-simulation per evaluation), the film's anisotropy (weaker along y, or along x) and each
+   face's coat printed a few pixels off its mask along x or y. A form is credited only when
+   the scan is further from the design than the model floor (``floor``, given by the user)
+   and its noise combined, the form removes at least :data:`NAME_GAIN` of the deviation
+   beyond the floor, and no rival form fits within :data:`RIVAL_TOL` of it; with rivals, the
+   diagnosis credits nothing and names them. A credited region is joined by further regions
+   while each removes at least :data:`NAME_GAIN` of what is left beyond the floor (refitted
+   together); the deviation before and after is reported, and every form's fit.
 
 A measured shape must be a scan of the surface: an exact copy of the simulated *vertices*
 of a design with two or more cell layers through the film (``nz >= 2``) includes the vertices
@@ -59,17 +63,17 @@ from pathlib import Path
 
 import numpy as np
 
-from gdfe._validation import GdfeError, check_array, check_choice, check_positive
+from gdfe._validation import GdfeError, check_array, check_choice, check_number, check_positive
 from gdfe.diagnosis.align import align_icp
 from gdfe.diagnosis.regions import design_regions
 from gdfe.diagnosis.scan import check_points, load_measured
+from gdfe.diagnosis.shape_forms import (EFFECT_OVER_FLOOR, NAME_GAIN, RIVAL_TOL, FormFit, beyond, credit,
+                                        fit_film_forms, scan_noise)
 from gdfe.diagnosis.surface import Surface
 
-__all__ = ["ShapeDiagnosis", "diagnose_shape", "NAME_GAIN", "ALIGNMENTS", "MATCH_RESIDUAL",
-           "MATCH_COVERAGE", "NO_MATCH"]
+__all__ = ["ShapeDiagnosis", "diagnose_shape", "NAME_GAIN", "RIVAL_TOL", "ALIGNMENTS", "MATCH_RESIDUAL",
+           "MATCH_COVERAGE", "NO_MATCH", "NO_GAP", "NO_GAP_BEYOND_FLOOR", "GAP_WITHIN_DISAGREEMENT"]
 
-#: A further region is named when correcting it lowers the RMS deviation by this fraction.
-NAME_GAIN = 0.2
 #: Largest RMS distance of the measured points to the simulated surface, over the part's RMS
 #: radius, of a scan of the part (see the module docstring for the cases it was set on).
 MATCH_RESIDUAL = 0.1
@@ -85,6 +89,15 @@ FACTORS = (0.5, 2.0)
 NO_MATCH = "the scan does not match the design"
 #: The ``align`` choices of :func:`diagnose_shape`.
 ALIGNMENTS = ("auto", "correspondence", "icp")
+#: The verdict when no form removes :data:`NAME_GAIN` of the deviation (beyond the floor, when
+#: one is given): there may be a gap, but no form of the diagnosis localises it.
+NO_GAP = "no gap localised"
+#: The verdict, with a floor given, of a scan no further from the design than the floor and the noise.
+NO_GAP_BEYOND_FLOOR = "no gap beyond the floor"
+#: The verdict of a scan beyond the floor by less than the floor itself
+#: (:data:`~gdfe.diagnosis.shape_forms.EFFECT_OVER_FLOOR`): what a form fits could be the models'
+#: own disagreement.
+GAP_WITHIN_DISAGREEMENT = "a gap no larger than the models' own disagreement: nothing credited"
 
 
 @dataclasses.dataclass
@@ -122,6 +135,27 @@ class ShapeDiagnosis:
         Contraction ratios fitted to the named regions.
     converged : bool
         Every GDFE solve converged.
+    forms : list of dict
+        Every form fitted (:class:`~gdfe.diagnosis.shape_forms.FormFit`: ``form``, ``kind``,
+        ``params``, ``rms_after``): each region's contraction, the film's anisotropy weaker along
+        y and along x, each face's coat offset along x and along y.
+    outcome : str
+        What the forms allow (:func:`~gdfe.diagnosis.shape_forms.credit`): ``"credited"``,
+        ``"cannot_tell"``, ``"no_form"``, ``"within_disagreement"``, ``"within_floor"``, or
+        ``"not_fitted"``.
+    credited : dict or None
+        The form credited (as in ``forms``).
+    not_ruled_out : list of str
+        With ``"cannot_tell"``: the forms that fit within
+        :data:`~gdfe.diagnosis.shape_forms.RIVAL_TOL` of the best, the best first.
+    floor : float [mm] or None
+        The model floor given.
+    noise : float [mm]
+        The scan's noise (:func:`~gdfe.diagnosis.shape_forms.scan_noise`).
+    level : float [mm]
+        ``sqrt(floor^2 + noise^2)``: the RMS deviation a scan must exceed for a gap.
+    gain : float
+        Share of the deviation beyond the floor that the best form removes.
     """
 
     design_path: str
@@ -139,13 +173,27 @@ class ShapeDiagnosis:
     transform: dict
     matches: bool = True
     match: dict = dataclasses.field(default_factory=dict)
+    forms: list = dataclasses.field(default_factory=list)
+    outcome: str = "not_fitted"
+    credited: dict | None = None
+    not_ruled_out: list = dataclasses.field(default_factory=list)
+    floor: float | None = None
+    noise: float = float("nan")
+    level: float = float("nan")
+    gain: float = 0.0
 
     @property
     def verdict(self) -> str:
         if not self.matches:
             return NO_MATCH
+        if self.outcome == "cannot_tell":
+            return "cannot tell which form: " + ", ".join(self.not_ruled_out)
+        if self.outcome == "credited" and self.credited["kind"] != "region":
+            return _form_words(self.credited)
         if not self.named:
-            return "no gap localised"
+            if self.outcome == "within_disagreement":
+                return GAP_WITHIN_DISAGREEMENT
+            return NO_GAP_BEYOND_FLOOR if (self.outcome == "within_floor" and self.floor is not None) else NO_GAP
         return "the gap lies in " + ", ".join(self.named)
 
     def as_dict(self) -> dict:
@@ -157,7 +205,10 @@ class ShapeDiagnosis:
                 "named": self.named, "corrected_R": self.corrected_R, "regions": self.regions,
                 "element_deviation": [None if not np.isfinite(v) else float(v) for v in self.element_deviation],
                 "converged": self.converged, "n_simulations": self.n_simulations,
-                "transform": self.transform, "name_gain": NAME_GAIN}
+                "transform": self.transform, "name_gain": NAME_GAIN, "rival_tolerance": RIVAL_TOL,
+                "outcome": self.outcome, "credited": self.credited, "not_ruled_out": self.not_ruled_out,
+                "forms": self.forms, "floor_mm": self.floor, "noise_mm": _finite(self.noise),
+                "level_mm": _finite(self.level), "gain_beyond_floor": float(self.gain)}
 
     def text(self) -> str:
         m = self.match
@@ -188,17 +239,60 @@ class ShapeDiagnosis:
             lines.append(f"{r['name']:12s} {r['n_cells']:6d} {r['rms']:9.4g} {r['local_rms']:10.4g} "
                          + (f"{r['R_design']:9.4f} {sf:8.4f} {r['single_fit_rms']:12.4g}" if sf is not None
                             else f"{'-':>9s} {'-':>8s} {'-':>12s}"))
+        lines += self._form_lines()
         if self.named:
             lines.append("the gap lies in " + ", ".join(
                 f"{n} (R {self.regions_by_name()[n]['R_design']:.4f} -> {self.corrected_R[n]:.4f})"
                 for n in self.named))
         else:
-            lines.append("no region's correction lowers the deviation by "
-                         f"{100 * NAME_GAIN:.0f} %: no gap localised")
+            lines.append(self._why_nothing())
         return "\n".join(lines)
+
+    def _form_lines(self):
+        if not self.forms:
+            return []
+        lines = [f"scan noise {self.noise:.3g} mm; floor "
+                 + ("not given" if self.floor is None else f"{self.floor:.4g} mm")
+                 + f"; a gap needs an RMS deviation above {self.level:.4g} mm (floor and noise in quadrature)",
+                 f"{'form':36s} {'RMS after':>10s}  parameters"]
+        for f in sorted(self.forms, key=lambda f: f["rms_after"]):
+            par = ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in f["params"].items())
+            lines.append(f"{f['form']:36s} {f['rms_after']:10.4g}  {par}")
+        return lines
+
+    def _why_nothing(self):
+        if self.outcome == "credited":
+            return (f"credited: {self.verdict}; every other form leaves an RMS deviation more than "
+                    f"{100 * RIVAL_TOL:.0f} % above its")
+        if self.outcome == "cannot_tell":
+            return (f"nothing is credited: {len(self.not_ruled_out)} forms leave RMS deviations within "
+                    f"{100 * RIVAL_TOL:.0f} % of the best's; not ruled out: {', '.join(self.not_ruled_out)}")
+        if self.outcome == "within_floor":
+            return (f"the RMS deviation {self.rms_before:.4g} mm is within the floor and the noise "
+                    f"({self.level:.4g} mm): {self.verdict}")
+        if self.outcome == "within_disagreement":
+            return (f"the RMS deviation {self.rms_before:.4g} mm exceeds the floor and the noise "
+                    f"({self.level:.4g} mm) by less than {EFFECT_OVER_FLOOR:g} x the floor: a form's fit could be "
+                    f"the models' own disagreement; {self.verdict}")
+        return (f"no form removes {100 * NAME_GAIN:.0f} % of the deviation"
+                + (" beyond the floor" if self.floor is not None else "") + f" (best {100 * self.gain:.0f} %): "
+                + self.verdict)
 
     def regions_by_name(self):
         return {r["name"]: r for r in self.regions}
+
+
+def _finite(v):
+    return float(v) if v is not None and np.isfinite(v) else None
+
+
+def _form_words(form):
+    """The verdict of a credited form other than a region's contraction."""
+    p = form["params"]
+    if form["kind"] == "anisotropy":
+        return (f"the film is anisotropic: it shrinks {p['ratio']:.3g} times as much along {p['weak_axis']} "
+                f"as across it")
+    return f"the {p['face']} coat is printed {p['pixels']:+d} pixels off its mask along {p['axis']}"
 
 
 class _Comparer:
@@ -230,12 +324,17 @@ class _Comparer:
         self.faces = surface_faces(design)
 
     def simulate(self, R):
+        return self.simulate_design(self.design.with_R(R))
+
+    def simulate_design(self, design, mirror=False):
+        """GDFE's shape of ``design`` (a changed copy of the design); x and y swapped back when
+        ``mirror`` (a design mirrored across ``x = y``)."""
         import gdfe
 
-        res = gdfe.simulate(self.design.with_R(R), **self.options)
+        res = gdfe.simulate(design, **self.options)
         self.n_sims += 1
         self.converged &= bool(res.converged)
-        return res.points
+        return res.points[:, [1, 0, 2]] if mirror else res.points
 
     def compare(self, sim, restart=False):
         """Per-point deviations [mm] and the cell of each point (None: per vertex), after
@@ -387,7 +486,7 @@ def _local_rms(comp, sim, cells, owner_all):
 
 
 def diagnose_shape(design, measured, *, align="auto", correct=True, options=None, regions=None,
-                   r_span=0.5):
+                   r_span=0.5, floor=None):
     """Where a measured shape deviates from the simulation of its design, and which region's
     contraction explains it.
 
@@ -411,6 +510,13 @@ def diagnose_shape(design, measured, *, align="auto", correct=True, options=None
     r_span : float
         Each region's contraction ratio is searched within ``R +- r_span`` (clipped to
         (0.02, 1]).
+    floor : float [mm], optional
+        The model floor: the RMS deviation of a scan of a part printed as designed from its
+        simulation (measured by the user). A gap is localised only when the scan's RMS deviation
+        exceeds the floor and the scan's noise in quadrature (else :data:`NO_GAP_BEYOND_FLOOR`),
+        by at least the floor itself (else :data:`GAP_WITHIN_DISAGREEMENT`), and the credited form
+        removes at least :data:`NAME_GAIN` of the deviation beyond the floor (else
+        :data:`NO_GAP`; :mod:`gdfe.diagnosis.shape_forms`). None: 0.
 
     Returns
     -------
@@ -420,13 +526,17 @@ def diagnose_shape(design, measured, *, align="auto", correct=True, options=None
     ------
     GdfeError
         A measured shape that is not an array of at least 4 points or a readable file, an
-        unknown ``align``, or correspondences asked of a measurement that is not a mesh of
-        the design.
+        unknown ``align``, correspondences asked of a measurement that is not a mesh of
+        the design, or a ``floor`` that is negative or not finite.
     """
     import gdfe
 
     align = check_choice("align", align, ALIGNMENTS)
     r_span = check_positive("r_span", r_span)
+    if floor is not None:
+        floor = check_number("floor", floor, minimum=0.0,
+                             what="a finite RMS distance >= 0 in mm (a scan of a part printed as designed against "
+                                  "its simulation)")
     design_path = measured_path = "<array>"
     opts = {}
     if not isinstance(design, gdfe.Design):
@@ -472,29 +582,80 @@ def diagnose_shape(design, measured, *, align="auto", correct=True, options=None
     if match["factor"] != 1.0:  # the alignment to the nominal shape again
         dev, owner = comp.compare(sim0, restart=True)
     elem = _per_cell(design, dev, owner)
-    table = []
+    table = _region_table(comp, regions, R0, sim0, dev, owner)
+    transform = {"Q": comp.Q.tolist(), "t": comp.t.tolist()}
+    noise = scan_noise(design, comp.measured @ comp.Q.T + comp.t, sim0, owner, faces=comp.faces)
+    fit = _Correction(named=[], fitted={}, rms_after=rms0, forms=[], outcome="not_fitted", credited=None,
+                      not_ruled_out=[], level=float(np.hypot(floor or 0.0, noise)), gain=0.0)
+    if correct:
+        fit = _correct(comp, regions, table, R0, rms0, r_span, floor, noise)
+    return ShapeDiagnosis(
+        design_path=design_path, measured_path=measured_path, method=comp.method,
+        n_measured=int(len(measured)), rms_before=rms0, rms_after=fit.rms_after, element_deviation=elem,
+        regions=table, named=fit.named, corrected_R=fit.fitted, converged=comp.converged,
+        n_simulations=comp.n_sims, transform=transform, matches=True, match=match,
+        forms=[f.as_dict() for f in fit.forms], outcome=fit.outcome,
+        credited=fit.credited.as_dict() if fit.credited is not None else None, not_ruled_out=fit.not_ruled_out,
+        floor=floor, noise=noise, level=fit.level, gain=fit.gain)
+
+
+def _region_table(comp, regions, R0, sim0, dev, owner):
+    """Per region: its deviation after the global alignment and aligned alone, and the design's
+    contraction ratio (None for a region that does not contract)."""
+    from gdfe.material import Material
+
+    design, table = comp.design, []
     for name, rc in regions.items():
-        contracting = bool(np.any(design.material[rc] != gdfe.Material.RIGID))
+        contracting = bool(np.any(design.material[rc] != Material.RIGID))
         table.append({"name": name, "n_cells": int(len(rc)), "rms": _region_rms(design, rc, dev, owner),
                       "local_rms": _local_rms(comp, sim0, rc, owner),
                       "R_design": float(np.mean(R0[rc])) if contracting else None,
                       "single_fit": None, "single_fit_rms": None})
-    transform = {"Q": comp.Q.tolist(), "t": comp.t.tolist()}
-    named, fitted, rms_after = [], {}, rms0
-    if correct:
-        named, fitted, rms_after = _localise(comp, regions, table, R0, rms0, r_span)
+    return table
+
+
+@dataclasses.dataclass
+class _Correction:
+    """What the forms fitted to a scan say (:func:`_correct`)."""
+
+    named: list
+    fitted: dict
+    rms_after: float
+    forms: list
+    outcome: str
+    credited: FormFit | None
+    not_ruled_out: list
+    level: float
+    gain: float
+
+
+def _correct(comp, regions, table, R0, rms0, r_span, floor, noise):
+    """Fit every form (each region's contraction, the film's anisotropy, the coats' offsets),
+    credit one or none (:func:`~gdfe.diagnosis.shape_forms.credit`), extend a credited region's
+    contraction to further regions while each removes :data:`NAME_GAIN` of what is left beyond
+    the floor, and report each region's deviation after the correction."""
+    single = _single_fits(comp, regions, table, R0, r_span)
+    forms = [FormFit(f"contraction of {n}", "region",
+                     {"region": n, "R_design": float(np.mean(R0[regions[n]])), "R": v}, rms, k)
+             for n, (v, rms, k) in single.items()]
+    forms += fit_film_forms(comp)
+    c = credit(forms, rms0, floor, noise)
+    named, fitted, rms_after, points = [], {}, rms0, None
+    if c.credited is not None and c.credited.kind == "region":
+        named, fitted, rms_after = _extend(comp, regions, R0, single, c.credited.params["region"], r_span, floor)
         R = R0.copy()
         for n, v in fitted.items():
             R[regions[n]] = v
-        dev1, owner1 = comp.compare(comp.simulate(R))
+        points = comp.simulate(R)
+    elif c.credited is not None:
+        rms_after, points = c.credited.rms_after, c.credited.points
+    if points is not None:
+        dev1, owner1 = comp.compare(points)
         for row in table:
             row["R_fit"] = fitted.get(row["name"], row["R_design"])
-            row["rms_after"] = _region_rms(design, regions[row["name"]], dev1, owner1)
-    return ShapeDiagnosis(
-        design_path=design_path, measured_path=measured_path, method=comp.method,
-        n_measured=int(len(measured)), rms_before=rms0, rms_after=rms_after, element_deviation=elem,
-        regions=table, named=named, corrected_R=fitted, converged=comp.converged,
-        n_simulations=comp.n_sims, transform=transform, matches=True, match=match)
+            row["rms_after"] = _region_rms(comp.design, regions[row["name"]], dev1, owner1)
+    return _Correction(named=named, fitted=fitted, rms_after=rms_after, forms=forms, outcome=c.outcome,
+                       credited=c.credited, not_ruled_out=c.not_ruled_out, level=c.level, gain=c.gain)
 
 
 def _fit_regions(comp, regions, names, R0, start, r_span, sweeps=2):
@@ -522,25 +683,29 @@ def _fit_regions(comp, regions, names, R0, start, r_span, sweeps=2):
     return vals, rms
 
 
-def _localise(comp, regions, table, R0, rms0, r_span):
+def _single_fits(comp, regions, table, R0, r_span):
+    """Each contracting region's contraction ratio fitted alone: ``{name: (R, rms, simulations)}``
+    (also written into ``table``)."""
     rows = {r["name"]: r for r in table}
-    movable = [r["name"] for r in table if r["R_design"] is not None]
     single = {}
-    for n in movable:
+    for n in (r["name"] for r in table if r["R_design"] is not None):
+        k = comp.n_sims
         vals, rms = _fit_regions(comp, regions, [n], R0, {}, r_span)
-        single[n] = (vals[n], rms)
+        single[n] = (vals[n], rms, comp.n_sims - k)
         rows[n]["single_fit"], rows[n]["single_fit_rms"] = vals[n], rms
-    named, fitted, current = [], {}, rms0
-    remaining = sorted(movable, key=lambda n: single[n][1])
-    while remaining:
-        n = remaining[0]
-        trial = named + [n]
-        if named:
-            vals, rms = _fit_regions(comp, regions, trial, R0, {**fitted, n: single[n][0]}, r_span)
-        else:
-            vals, rms = {n: single[n][0]}, single[n][1]
-        if rms > (1.0 - NAME_GAIN) * current:
+    return single
+
+
+def _extend(comp, regions, R0, single, first, r_span, floor):
+    """The credited region ``first``, and further regions (best single fit first) refitted together
+    while each removes at least :data:`NAME_GAIN` of the deviation left beyond the floor."""
+    floor = floor or 0.0
+    named, fitted, current = [first], {first: single[first][0]}, single[first][1]
+    for n in sorted((n for n in single if n != first), key=lambda n: single[n][1]):
+        if beyond(current, floor) <= 0.0:  # nothing left beyond the floor
             break
-        named, fitted, current = trial, vals, rms
-        remaining = remaining[1:]
+        vals, rms = _fit_regions(comp, regions, named + [n], R0, {**fitted, n: single[n][0]}, r_span)
+        if beyond(rms, floor) > (1.0 - NAME_GAIN) * beyond(current, floor):
+            break
+        named, fitted, current = named + [n], vals, rms
     return named, fitted, current

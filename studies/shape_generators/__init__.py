@@ -10,9 +10,9 @@ effect. What they use:
 * the **design** handed to the diagnosis (:mod:`.designs`), with the contraction ratio a
   designer calibrates on the FEM's own folding test of a hinge (:mod:`.calibration`);
 * the **parts** (:mod:`.parts`): a thicker or stiffer coat on one hinge, an anisotropic film,
-  a coat printed off its mask;
+  a coat printed off its mask, a film whose shrink varies along the part;
 * the **answers** declared per generator (:mod:`.registry`), including "cannot say" for the
-  effects the diagnosis has no form for.
+  effect the diagnosis has no form for (the shrink varying along the part).
 
 Lengths in mm.
 """

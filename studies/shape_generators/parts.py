@@ -12,11 +12,15 @@ at most one change to what was designed:
   direction ``ratio`` times the stronger, their mean kept at the material's
   (:attr:`reference_fem.Plate.eigenstrain`);
 - **coat offset**: one face's coat printed ``pixels`` pixels off its mask along x or y; the
-  cells it leaves or reaches change material (coat that lands off the film is lost).
+  cells it leaves or reaches change material (coat that lands off the film is lost);
+- **contraction gradient**: the film's eigenstrain (all three components) scaled by a factor
+  that varies linearly along x or y, ``1 + spread (s - mean s) / (s_max - s_min)`` over the film's
+  elements (``s`` an element's centre along the axis), so the mean is kept and the two ends
+  differ by ``spread`` of it (:func:`gradient_eigenstrain`): a part heated unevenly.
 
 None of this is GDFE's model of the effect: GDFE's principle has no coat thickness, stiffness,
-film anisotropy by direction of the draw beyond its ``isotropy``, or misregistration of a face.
-Lengths in mm.
+film anisotropy by direction of the draw beyond its ``isotropy``, misregistration of a face,
+or contraction varying within a region. Lengths in mm.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ import numpy as np
 from gdfe.material import Material
 from studies.shape_generators.calibration import fem_options
 
-__all__ = ["solve_part", "offset_material", "coat_stiffness", "anisotropic_eigenstrain"]
+__all__ = ["solve_part", "offset_material", "coat_stiffness", "anisotropic_eigenstrain", "gradient_eigenstrain"]
 
 
 def offset_material(design, face, axis, pixels):
@@ -78,7 +82,20 @@ def anisotropic_eigenstrain(plate, material, ratio, weak_axis):
     return e
 
 
-def solve_part(design, R, *, d_factor=None, stiffer=None, anisotropy=None, material=None):
+def gradient_eigenstrain(plate, material, spread, axis):
+    """Per-element eigenstrain of a film whose shrink varies linearly along ``axis`` (0: x, 1: y):
+    the material's times ``1 + spread (s - mean s) / (s_max - s_min)``, ``s`` the element's cell
+    centre along the axis, mean and range over the film's elements (the coat's carry none)."""
+    from reference_fem.mesh import FILM
+
+    s = np.asarray(plate.cell, float)[:, axis] + 0.5
+    film = np.asarray(plate.ply) == FILM
+    span = float(s[film].max() - s[film].min())
+    factor = 1.0 + float(spread) * (s - s[film].mean()) / (span if span > 0 else 1.0)
+    return factor[:, None] * np.asarray(material.eigenstrain_xyz, float)[None, :]
+
+
+def solve_part(design, R, *, d_factor=None, stiffer=None, anisotropy=None, material=None, gradient=None):
     """The plate FEM of ``design`` (a :class:`~.designs.PlateDesign`) with at most one effect.
 
     Parameters
@@ -95,6 +112,8 @@ def solve_part(design, R, *, d_factor=None, stiffer=None, anisotropy=None, mater
         ``(ratio, weak_axis)``.
     material : (nx, ny) int array, optional
         A misprinted material grid (:func:`offset_material`).
+    gradient : (float, int), optional
+        ``(spread, axis)`` of a contraction varying along the part (:func:`gradient_eigenstrain`).
 
     Returns
     -------
@@ -110,4 +129,7 @@ def solve_part(design, R, *, d_factor=None, stiffer=None, anisotropy=None, mater
     if anisotropy is not None:
         ratio, axis = anisotropy
         plate = dataclasses.replace(plate, eigenstrain=anisotropic_eigenstrain(plate, mat, ratio, axis))
+    if gradient is not None:
+        spread, axis = gradient
+        plate = dataclasses.replace(plate, eigenstrain=gradient_eigenstrain(plate, mat, spread, axis))
     return rf.solve_plate(plate, mat)

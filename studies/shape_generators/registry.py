@@ -5,15 +5,23 @@ Strengths are drawn from ranges fixed beforehand from the physics, never from wh
 diagnosis sees. Every answer is declared here, before any diagnosis runs:
 
 - ``null`` (the part as designed): nothing to find, the right answer is that there is no gap;
-- ``catalogue`` (a thicker or a stiffer coat on one hinge): the shape diagnosis's form, a
-  region whose contraction differs from the design's, covers it; the right answer names that
-  hinge alone and says it bends *less* or *more* than designed, the direction Timoshenko's
-  bilayer gives for the change (:func:`bending_change`; with the FEM's coat 8.58 times stiffer
-  and thicker than the film, both make the hinge bend less). Thickness and stiffness cannot
-  be told apart by one shape: both count right with the same answer;
-- ``outside`` (an anisotropic film, a coat offset from its mask): no form of the diagnosis
-  reproduces them; right only when it credits no region (no gap localised, or the scan said not
-  to match the design), wrong when it names a region.
+- ``catalogue``, effects the shape diagnosis has a form for:
+
+  - a thicker or a stiffer coat on one hinge: the form of a region whose contraction differs
+    from the design's covers it; the right answer names that hinge alone and says it bends
+    *less* or *more* than designed, the direction Timoshenko's bilayer gives for the change
+    (:func:`bending_change`; with the FEM's coat 8.58 times stiffer and thicker than the film,
+    both make the hinge bend less). Thickness and stiffness cannot be told apart by one shape:
+    both count right with the same answer;
+  - an anisotropic film: the right answer is the film-anisotropy form with the weaker axis
+    right;
+  - one face's coat printed off its mask: the right answer is the coat-offset form of that face
+    along that axis, its shift of the same sign and within one pixel of the truth;
+
+- ``outside`` (a film whose contraction varies linearly along the part, a part heated
+  unevenly): no form reproduces it, though a region's contraction or the anisotropy may imitate
+  part of it; right only when nothing is credited (no gap localised, "cannot tell which", or
+  the scan said not to match the design), wrong when a form is credited.
 
 Lengths in mm.
 """
@@ -60,13 +68,22 @@ class ShapeGenerator:
     make: Callable
 
     def answer(self, strengths):
-        """The declared answer: ``{"says": ..., "region": ..., "bends": ...}``."""
+        """The declared answer: ``{"says": "no gap" | "cannot say" | "region" | "form", "region": ...,
+        "bends": ..., "form": ...}``; a film anisotropy adds ``weak_axis`` (``"x"``, ``"y"``), a
+        coat offset ``face``, ``axis`` and ``pixels``."""
+        none = {"region": None, "bends": None, "form": None}
         if self.kind == "null":
-            return {"says": "no gap", "region": None, "bends": None}
+            return {"says": "no gap", **none}
         if self.kind == "outside":
-            return {"says": "cannot say", "region": None, "bends": None}
+            return {"says": "cannot say", **none}
+        if self.name == "anisotropic_film":
+            return {"says": "form", **none, "form": "anisotropy", "weak_axis": "xy"[strengths["weak_axis"]]}
+        if self.name == "coat_offset":
+            return {"says": "form", **none, "form": "offset", "face": strengths["face"],
+                    "axis": "xy"[strengths["axis"]], "pixels": int(strengths["pixels"])}
         change = bending_change(d_factor=strengths.get("d_factor", 1.0), E_factor=strengths.get("E_factor", 1.0))
-        return {"says": "region", "region": strengths["region"], "bends": "less" if change < 1.0 else "more"}
+        return {"says": "region", "region": strengths["region"], "bends": "less" if change < 1.0 else "more",
+                "form": "region"}
 
 
 def bending_change(d_factor=1.0, E_factor=1.0):
@@ -93,7 +110,11 @@ def _region(rng, design):
     return str(design.hinges[int(rng.integers(len(design.hinges)))])
 
 
-RANGES = {"d_factor": (1.3, 2.0), "E_factor": (1.5, 3.0), "ratio": (0.7, 0.9), "pixels": (1, 3)}
+#: Where the strengths are drawn from. ``spread``: the two ends of a part heated unevenly (by a heat
+#: gun, on a hot plate's edge, near an oven's element) a few kelvin apart, where the film's shrink
+#: rises steeply with temperature, shrink 20-40 % of the mean apart.
+RANGES = {"d_factor": (1.3, 2.0), "E_factor": (1.5, 3.0), "ratio": (0.7, 0.9), "pixels": (1, 3),
+          "spread": (0.2, 0.4)}
 
 GENERATORS = {
     "null": ShapeGenerator(
@@ -109,17 +130,24 @@ GENERATORS = {
         draw=lambda rng, des: {"region": _region(rng, des), "E_factor": _u(rng, *RANGES["E_factor"])},
         make=lambda des, R, s: solve_part(des, R, stiffer=(s["region"], s["E_factor"]))),
     "anisotropic_film": ShapeGenerator(
-        "anisotropic_film", "outside", "the film contracts less along one axis (ratio), mean kept",
+        "anisotropic_film", "catalogue", "the film contracts less along one axis (ratio), mean kept",
         {"ratio": RANGES["ratio"]},
         draw=lambda rng, des: {"ratio": _u(rng, *RANGES["ratio"]), "weak_axis": int(rng.integers(2))},
         make=lambda des, R, s: solve_part(des, R, anisotropy=(s["ratio"], s["weak_axis"]))),
     "coat_offset": ShapeGenerator(
-        "coat_offset", "outside", "one face's coat printed 1-3 pixels off its mask along x or y",
+        "coat_offset", "catalogue", "one face's coat printed 1-3 pixels off its mask along x or y",
         {"pixels": RANGES["pixels"]},
         draw=lambda rng, des: {"face": ("top", "bottom")[int(rng.integers(2))], "axis": int(rng.integers(2)),
                                "pixels": int(rng.integers(1, 4)) * (1 if rng.random() < 0.5 else -1)},
         make=lambda des, R, s: solve_part(des, R, material=offset_material(des, s["face"], s["axis"],
                                                                            s["pixels"]))),
+    "contraction_gradient": ShapeGenerator(
+        "contraction_gradient", "outside",
+        "the film's shrink varies linearly along x or y, its ends spread apart by 20-40 % of the mean, mean kept",
+        {"spread": RANGES["spread"]},
+        draw=lambda rng, des: {"spread": _u(rng, *RANGES["spread"]) * (1 if rng.random() < 0.5 else -1),
+                               "axis": int(rng.integers(2))},
+        make=lambda des, R, s: solve_part(des, R, gradient=(s["spread"], s["axis"]))),
 }
 
 
