@@ -12,9 +12,10 @@ points both models have:
 - a deviation map: the distance at every vertex (PNG, and a VTU of GDFE's film with the field
   ``deviation_mm``), and its mean over the cells of each material (where the coat is);
 - GDFE with R fitted to the FEM's shape (the RMS distance minimised over one R), beside Eq. 3's;
-- where the FEM is refined (the Figure 8 plates and the inverse designs), each model's own
-  refinement sequence (FEM: 1, 2 elements per cell; GDFE: cells split 1, 2, 4 times), the error of
-  each level against that model's finest, and the time each needs at equal shape error.
+- where the FEM is refined (every part but the coarse run's), each model's own refinement
+  sequence (FEM: 1, 2 elements per cell, and 3 on the Figure 8 plates at fine; GDFE: cells split 1,
+  2, 4 times, and 8 at fine), the error of each level against that model's finest, and the time
+  each needs at equal shape error.
 
 - the masks a 2-D inverse design prints (:func:`gdfe.inverse2d.design_surface` for a dome and a
   saddle on a 6 mm film at 0.5 mm pixels, designed through GDFE, printed as halftoned masks):
@@ -24,8 +25,10 @@ points both models have:
   :func:`gdfe.measure.panel_angles` on each model's mid-surface, the same function for both.
 
 Resolutions: coarse, the twist and the saddle on 4 mm plates (0.5 mm pixels); default, all seven
-parts at their printed size (Figure 8's 8 mm plates at 0.5 mm pixels); fine, the same with
-Figure 8's 0.25 mm pixels. Units: mm, rad, s.
+parts at their printed size (Figure 8's 8 mm plates at 0.5 mm pixels); fine, the same parts with
+each model refined one level further on the Figure 8 plates (the FEM at three elements per cell,
+11 520 elements on the saddle, the size this machine solves in about ten minutes; GDFE's cells
+split 8 times): the finest each model reaches here. Units: mm, rad, s.
 
 Run ``python -m studies.compare_shapes [--resolution coarse|default|fine] [--out DIR]`` (or
 ``gdfe study compare-shapes``); writes ``compare_shapes.png``, ``compare_shapes.json`` and
@@ -60,14 +63,14 @@ SETTINGS = {
                "fem_refine": {}, "gdfe_split": (1,), "fit_tol": 0.01},
     "default": {"parts": ("twist", "dome", "saddle", "tube", "box", "inverse_dome", "inverse_saddle"),
                 "fig08_cells": 16, "fig08_pixel": 0.5, "box_pixel": 0.5,
-                "fem_refine": {"twist": (1, 2), "dome": (1, 2), "saddle": (1, 2), "inverse_dome": (1, 2),
-                               "inverse_saddle": (1, 2)},
+                "fem_refine": {"twist": (1, 2), "dome": (1, 2), "saddle": (1, 2), "tube": (1, 2), "box": (1, 2),
+                               "inverse_dome": (1, 2), "inverse_saddle": (1, 2)},
                 "gdfe_split": (1, 2, 4), "fit_tol": 0.003, "inverse": INVERSE},
     "fine": {"parts": ("twist", "dome", "saddle", "tube", "box", "inverse_dome", "inverse_saddle"),
-             "fig08_cells": 32, "fig08_pixel": 0.25, "box_pixel": 0.5,
-             "fem_refine": {"twist": (1, 2), "dome": (1, 2), "saddle": (1, 2), "inverse_dome": (1, 2),
-                            "inverse_saddle": (1, 2)},
-             "gdfe_split": (1, 2, 4), "fit_tol": 0.001, "inverse": INVERSE},
+             "fig08_cells": 16, "fig08_pixel": 0.5, "box_pixel": 0.5,
+             "fem_refine": {"twist": (1, 2, 3), "dome": (1, 2, 3), "saddle": (1, 2, 3), "tube": (1, 2), "box": (1, 2),
+                            "inverse_dome": (1, 2), "inverse_saddle": (1, 2)},
+             "gdfe_split": (1, 2, 4, 8), "fit_tol": 0.001, "inverse": INVERSE},
 }
 
 
