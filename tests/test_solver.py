@@ -251,7 +251,7 @@ def test_newton_cg_products_and_coarse_matrix_match_the_assembled_hessian(turn, 
     mu = 1e-3
     H = hs.matrix(o.Q, o.S, rest, mu=mu)
     lin = hs.linearise(o.Q, o.S, rest, floor=1.0)
-    apply_H, _ = hs.operator(lin, rest, mu)
+    apply_H = hs.operator(lin, rest, mu).apply_H
     v = np.random.default_rng(3).standard_normal((sv.n, 3))
     v[sv.pin] = 0.0
     expect = (H @ v.ravel()).reshape(-1, 3)
@@ -261,6 +261,71 @@ def test_newton_cg_products_and_coarse_matrix_match_the_assembled_hessian(turn, 
     Hc = (Z3.T @ H @ Z3).toarray()
     np.testing.assert_allclose(hs.coarse_matrix(lin, rest, mu).toarray(), Hc, rtol=0, atol=1e-12 * np.abs(Hc).max())
     assert hs.coarse.spacing >= 2 and Z3.shape[1] < Z3.shape[0] / 3  # two cells apart: about a quarter, more at the rim
+
+
+def _plate_newton_system(n=40):
+    """A 40 x 40 plate of stripes, two layers, at its linearised start: the solver, its state and the Hessian."""
+    top = np.mod(np.arange(n), 6)[:, None] * np.ones((1, n), int) >= 2
+    des = gdfe.from_masks(top, np.ones((n, n), bool), 0.1, 0.7, nz=2)
+    sv = Solver(des)
+    V = sv.linearised_start(des.mesh.points.copy())
+    return sv, V, sv.orient(V), sv.rest(1.0), sv.reduced_hessian
+
+
+def test_deflated_two_level_cg_gives_the_balancing_iterates_for_fewer_products(monkeypatch):
+    """A-DEF2 started at the coarse solution takes the CG iterations of the balancing preconditioner
+    (Tang et al.'s equivalence), reaches the same solution, with two Hessian products per iteration
+    instead of three; its start is the coarse solution, H-orthogonal to the coarse space."""
+    import gdfe.solver.newton as nw
+
+    sv, V, o, rest, hs = _plate_newton_system()
+    lin = hs.linearise(o.Q, o.S, rest, floor=1.0)
+    b = np.random.default_rng(4).standard_normal((sv.n, 3))
+    b[sv.pin] = 0.0
+    out = {}
+    plain = sv.apply_L_free
+    for form in nw.TWO_LEVELS:
+        calls = {"H": 0}
+
+        def counted(v, calls=calls):  # every Hessian product makes one product with L
+            calls["H"] += 1
+            return plain(v)
+        monkeypatch.setattr(sv, "apply_L_free", counted)
+        monkeypatch.setattr(hs, "two_level", form)
+        ops = hs.operator(lin, rest, 1e-6)
+        x, k = nw.pcg(ops.apply_H, ops.apply_P, b, 1e-9, 500, start=ops.start)
+        out[form] = (x, k, calls["H"], ops)
+    xd, kd, hd, ops = out["deflated"]
+    xm, km, hm, _ = out["multiplicative"]
+    xa, ka, _, _ = out["additive"]
+    assert abs(kd - km) <= 1 and km < ka
+    assert hd <= 2 * kd + 2 and hm >= 3 * km - 1
+    np.testing.assert_allclose(xd, xm, atol=1e-6 * np.abs(xm).max())
+    r = b - ops.apply_H(xd)
+    assert np.linalg.norm(r) <= 1e-7 * np.linalg.norm(b)
+    # the start: the coarse solution, whose residual has no coarse component left
+    x0 = ops.start(b)
+    Zt = hs.coarse.Zt
+    assert np.abs(Zt @ (b - ops.apply_H(x0))).max() <= 1e-9 * np.abs(Zt @ b).max()
+
+
+def test_deflated_cg_stops_at_the_preconditioned_norm_of_the_balancing_preconditioner(monkeypatch):
+    """The relative tolerance is measured against ``sqrt(b^T P b)`` of the balancing preconditioner in
+    both forms: a loose tolerance stops both after the same iterations."""
+    import gdfe.solver.newton as nw
+
+    sv, V, o, rest, hs = _plate_newton_system()
+    lin = hs.linearise(o.Q, o.S, rest, floor=1.0)
+    b = np.random.default_rng(5).standard_normal((sv.n, 3))
+    b[sv.pin] = 0.0
+    norms = {}
+    for form in ("deflated", "multiplicative"):
+        monkeypatch.setattr(hs, "two_level", form)
+        ops = hs.operator(lin, rest, 1e-6)
+        seen = []
+        nw.pcg(ops.apply_H, ops.apply_P, b, lambda norm, seen=seen: seen.append(norm) or 0.1, 50, start=ops.start)
+        norms[form] = seen[0]
+    assert norms["deflated"] == pytest.approx(norms["multiplicative"], rel=1e-8)
 
 
 def test_linearised_start_falls_back_to_the_direct_solve_when_the_coarse_matrix_is_singular(monkeypatch):

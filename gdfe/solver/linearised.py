@@ -119,14 +119,16 @@ def linearised_start_cg(steps, hessian, V, activation=1.0, rtol=1e-6, max_iter=5
         log.info("linearised start: the coarse matrix is singular; solving the joint system directly")
         steps.timings["newton"] = steps.timings.get("newton", 0.0) + time.perf_counter() - t0
         return linearised_start_direct(steps, V, activation)
-    apply_H, apply_P = ops
+    apply_H = ops.apply_H
     b = steps.B @ P.reshape(-1, 3)
-    grad = apply_H(V) - 2.0 * b  # 2 (L V - b) - 2 J^T J V; zero at the pinned vertex
+    # 2 (L V - b) - 2 J^T J V, zero at the pinned vertex; the products take vectors zero there, and
+    # a translation is in the null space of both L and J
+    grad = apply_H(V - V[steps.pin]) - 2.0 * b
     grad[steps.pin] = 0.0
     if np.abs(grad).max() <= 1e-12 * max(np.abs(b).max(), 1e-300):  # V already minimises the model (R = 1)
         step, k = np.zeros_like(V), 0
     else:
-        step, k = pcg(apply_H, apply_P, -grad, rtol, max_iter)
+        step, k = pcg(ops.apply_H, ops.apply_P, -grad, rtol, max_iter, start=ops.start)
     log.debug("linearised start: %d CG iterations", k)
     # the rigid rotations are a null direction of this quadratic: CG leaves round-off along
     # them, which would turn the whole shape; keep the step's deformation, the pin held

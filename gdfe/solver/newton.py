@@ -17,6 +17,7 @@ import dataclasses
 import functools
 import logging
 import time
+import typing
 
 import numpy as np
 import scipy.sparse as sp
@@ -30,8 +31,8 @@ from gdfe.solver.multigrid import lattice
 __all__ = ["MU_MIN", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "CONTACT_ALPHAS", "CONTACT_EXACT_RES", "DRIFT_WINDOW",
            "DRIFT_ENERGY", "DRIFT_SHRINK", "ON_DRIFT", "RELEASE_POINTS", "CG_RTOL_MIN", "CG_RTOL_MAX", "CG_TARGET_MARGIN",
            "EW_GAMMA", "EW_ALPHA", "FORCINGS", "MU_RESIDUAL", "MODEL_AGREEMENT", "MU_FAST", "PRECONDITIONERS",
-           "AMG_REBUILD_DAMPING", "forcing_term", "sqrt_forcing", "COARSE_REUSE", "COARSE_REUSE_DAMPING",
-           "ReducedHessian", "Linearisation", "CoarseSpace", "pcg", "deformation", "solve_newton",
+           "AMG_REBUILD_DAMPING", "TWO_LEVELS", "CGOperator", "forcing_term", "sqrt_forcing", "COARSE_REUSE", "COARSE_REUSE_DAMPING",
+           "ReducedHessian", "Linearisation", "CoarseSpace", "CoarseCells", "pcg", "deformation", "solve_newton",
            "factorised_directions", "cg_directions"]
 
 log = logging.getLogger(__name__)
@@ -73,6 +74,9 @@ EW_ALPHA = 2.0
 FORCINGS = ("eisenstat-walker", "sqrt")
 #: The preconditioners of ``method="newton-cg"`` (see :func:`cg_directions`).
 PRECONDITIONERS = ("two-level", "amg")
+#: How the two-level preconditioner combines its fine and coarse corrections
+#: (:attr:`ReducedHessian.two_level`, :meth:`ReducedHessian.operator`).
+TWO_LEVELS = ("deflated", "multiplicative", "additive")
 #: The smoothed-aggregation hierarchy is made again when the damping moved by more than this.
 AMG_REBUILD_DAMPING = 1e-2
 #: ... and never tighter than this fraction of the reduction the stopping test still asks of the
@@ -81,7 +85,9 @@ AMG_REBUILD_DAMPING = 1e-2
 CG_TARGET_MARGIN = 0.25
 #: The coarse matrix of ``method="newton-cg"`` is made and factorised again only when the last
 #: step moved the shape by more than this (the estimated distance to the solution, units of h)
-#: or the damping changed much; otherwise the last one preconditions the step.
+#: or the damping changed much; otherwise the last one preconditions the step. Only with the
+#: balancing forms of the two-level preconditioner (:attr:`ReducedHessian.two_level`); the deflated
+#: one, the default, makes it at every iterate.
 COARSE_REUSE = 0.1
 #: ... and the damping changed the coarse matrix's L part by at most this fraction.
 COARSE_REUSE_DAMPING = 1e-2
@@ -131,10 +137,15 @@ def _block_rows(lin, p, pattern):
     data = np.empty((m, 3, r, 3))
     for s in range(0, m, _CHUNK):
         e = min(m, s + _CHUNK)
-        c = np.cross(lin.Q[s:e, None, :, :], lin.root[s:e].transpose(0, 2, 1)[:, :, None, :])  # [i, a, b, d]
-        np.matmul(p[s:e, None], c.transpose(0, 1, 3, 2), out=data[s:e])
+        _cell_blocks(lin.Q[s:e], lin.root[s:e], p[s:e], out=data[s:e])
     indices, indptr, shape = pattern
     return sp.csr_matrix((data.ravel(), indices, indptr), shape=shape)
+
+
+def _cell_blocks(Q, root, p, out=None):
+    """Every cell's three rows of :func:`_block_rows`, ``(m, 3, r, 3)``: entry ``(i, a, k, b)`` is ``p_ik . (q_b x r_a)``."""
+    c = np.cross(Q[:, None, :, :], root.transpose(0, 2, 1)[:, :, None, :])  # [i, a, b, d]
+    return np.matmul(p[:, None], c.transpose(0, 1, 3, 2), out=out)
 
 
 def _row_pattern(cols, n_cols):
@@ -198,6 +209,96 @@ class CoarseSpace:
     def Z3(self):
         return sp.kron(self.Z, sp.eye(3), format="csr")
 
+    @functools.cached_property
+    def cells(self) -> CoarseCells:
+        """The cells grouped by coarse cell (:class:`CoarseCells`), made on first use."""
+        return CoarseCells.of(self.corners, self.Z.shape[1])
+
+
+@dataclasses.dataclass(eq=False)
+class CoarseCells:
+    """The cells grouped by the coarse cell they lie in, for the coarse matrix (:meth:`ReducedHessian.coarse_matrix`).
+
+    Every cell of a coarse cell has the same eight corners, so its rows of ``J Z`` are a
+    3 x 24 block on the same 24 columns, and ``(J Z)^T J Z`` is a sum of one 24 x 24 block
+    per coarse cell: the cells' blocks stacked, ``G^T G``, one batched product, then
+    scattered into a CSR pattern made once. On the 10^5-cell Figure 8 twist this replaced
+    SciPy's sparse product ``(J Z)^T (J Z)`` (and its conversions), which took about a
+    quarter of the fine Newton time once the coarse matrix was made at every iterate.
+
+    Attributes
+    ----------
+    order : (m,) int array
+        The cells, sorted by coarse cell.
+    starts : (g + 1,) int array
+        Where each coarse cell's cells begin in ``order``.
+    columns : (g, 24) int array
+        The coarse matrix's columns of each coarse cell (corner ``q``, coordinate ``b``: ``3 q + b``).
+    indptr, indices : int arrays
+        The CSR pattern of the sum of the blocks (3k x 3k).
+    scatter : (g * 576,) int array
+        The index into that pattern's values of every block entry.
+    """
+
+    order: np.ndarray
+    starts: np.ndarray
+    columns: np.ndarray
+    indptr: np.ndarray
+    indices: np.ndarray
+    scatter: np.ndarray
+
+    @classmethod
+    def of(cls, corners, k):
+        """From every cell's corner columns ``corners`` ``(m, 8)`` on a coarse grid of ``k`` vertices."""
+        _, group, counts = np.unique(corners, axis=0, return_inverse=True, return_counts=True)
+        group = group.ravel()
+        order = np.argsort(group, kind="stable")
+        starts = np.concatenate([[0], np.cumsum(counts)])
+        columns = (3 * corners[order[starts[:-1]]].astype(np.int64)[:, :, None] + np.arange(3)).reshape(-1, 24)
+        n = 3 * k
+        flat = (columns[:, :, None] * n + columns[:, None, :]).ravel()
+        keys, scatter = np.unique(flat, return_inverse=True)
+        indptr = np.concatenate([[0], np.cumsum(np.bincount(keys // n, minlength=n))])
+        return cls(order=order, starts=starts, columns=columns, indptr=indptr,
+                   indices=(keys % n).astype(np.int32), scatter=scatter.ravel())
+
+    def gram(self, lin, pc):
+        """``(J Z)^T (J Z)`` (3k x 3k, CSR) from the linearisation ``lin`` and the coarse rest shapes ``pc``."""
+        g = self.columns.shape[0]
+        blocks = np.empty((g, 24, 24))
+        starts = self.starts
+        # coarse cells in slabs of about _COARSE_CHUNK cells: the stacked blocks' memory stays bounded
+        edges = np.unique(np.concatenate([np.searchsorted(starts, np.arange(0, starts[-1], _COARSE_CHUNK)), [g]]))
+        for g0, g1 in zip(edges[:-1], edges[1:]):
+            cells = self.order[starts[g0]:starts[g1]]
+            D = _cell_blocks(lin.Q[cells], lin.root[cells], pc[cells]).reshape(-1, 3, 24)
+            counts = np.diff(starts[g0:g1 + 1])
+            slot = np.arange(cells.size) - np.repeat(starts[g0:g1] - starts[g0], counts)
+            G = np.zeros((g1 - g0, int(counts.max()), 3, 24))
+            G[np.repeat(np.arange(g1 - g0), counts), slot] = D
+            G = G.reshape(g1 - g0, -1, 24)
+            np.matmul(G.transpose(0, 2, 1), G, out=blocks[g0:g1])
+        n = self.indptr.size - 1
+        data = np.bincount(self.scatter, weights=blocks.ravel(), minlength=self.indices.size)
+        return sp.csr_matrix((data, self.indices, self.indptr), shape=(n, n))
+
+
+class CGOperator(typing.NamedTuple):
+    """What preconditioned CG (:func:`pcg`) needs of one Newton system.
+
+    Attributes
+    ----------
+    apply_H, apply_P : callable
+        The Hessian product and the preconditioner, on ``(n, 3)`` arrays.
+    start : callable or None
+        The first iterate as a function of the right-hand side (a deflated CG's coarse
+        solution, :meth:`ReducedHessian.operator`); None starts from zero.
+    """
+
+    apply_H: typing.Callable
+    apply_P: typing.Callable
+    start: typing.Callable | None = None
+
 
 class ReducedHessian:
     """The Hessian of the rotation-reduced energy on one design's mesh.
@@ -236,8 +337,8 @@ class ReducedHessian:
     #: coarse matrix is factorised every step, and its factorisation grows faster than its size.
     coarse_cells = 10_000
     #: How ``method="newton-cg"`` combines the n x n and coarse corrections
-    #: (``"multiplicative"`` or ``"additive"``, see :meth:`operator`).
-    two_level = "multiplicative"
+    #: (:data:`TWO_LEVELS`, see :meth:`operator`).
+    two_level = "deflated"
 
     def __init__(self, steps):
         self.steps = steps
@@ -361,16 +462,7 @@ class ReducedHessian:
     def coarse_matrix(self, lin, rest, mu, extra=None):
         """``Z3^T H Z3``: the Hessian with damping ``max(mu, MU_MIN)`` on the coarse grid (3k x 3k, CSC)."""
         cs = self.coarse
-        Hc = (2.0 * (1.0 + max(mu, MU_MIN))) * cs.Lc3
-        pc, k = self.coarse_rest(rest), cs.Z.shape[1]
-        m = pc.shape[0]
-        # J Z a slab of cells at a time: its memory stays bounded; its column indices are made per
-        # slab, not kept (0.3 GiB at 10^6 cells, for about 2 % of the coarse matrix's time)
-        for s in range(0, m, _COARSE_CHUNK):
-            e = min(m, s + _COARSE_CHUNK)
-            part = Linearisation(Q=lin.Q[s:e], root=lin.root[s:e])
-            JZ = _block_rows(part, pc[s:e], _row_pattern(cs.corners[s:e], k))
-            Hc = Hc - 2.0 * (JZ.T @ JZ)
+        Hc = (2.0 * (1.0 + max(mu, MU_MIN))) * cs.Lc3 - 2.0 * cs.cells.gram(lin, self.coarse_rest(rest))
         if extra is not None:
             Hc = Hc + cs.Z3.T @ extra @ cs.Z3
         return sp.csc_matrix(Hc)
@@ -386,10 +478,21 @@ class ReducedHessian:
         """Hessian product and preconditioner at ``lin`` with damping ``mu``.
 
         The preconditioner combines the exact inverse of the (scaled) n x n system for
-        the three coordinates with a Galerkin coarse correction ``Z (Z^T H Z)^{-1} Z^T``:
-        symmetrically, coarse - fine - coarse (:attr:`two_level` ``"multiplicative"``,
-        which halves the CG iterations on the mask sheets for one more Hessian product),
-        or summed (``"additive"``).
+        the three coordinates, ``M``, with a Galerkin coarse correction
+        ``Q = Z (Z^T H Z)^{-1} Z^T``, as :attr:`two_level` says:
+
+        ``"deflated"`` (the default)
+            ``M r + Q (r - H M r)`` with CG started from the coarse solution ``Q b``
+            (:attr:`CGOperator.start`): Tang, Nabben, Vuik and Erlangga's A-DEF2. Started
+            there, every CG residual is H-orthogonal to the coarse space (``Q r = 0``), where
+            it gives the iterates of ``"multiplicative"`` (their Theorem: the balancing
+            preconditioner and A-DEF2 from that start are equal) for one Hessian product and
+            one coarse solve per CG iteration fewer; it is as robust as the balancing one to a
+            coarse matrix made at an earlier iterate (:data:`COARSE_REUSE`).
+        ``"multiplicative"``
+            Symmetrically, coarse - fine - coarse (the balancing Neumann-Neumann
+            preconditioner ``Q + (I - Q H) M (I - H Q)``), which halves the CG iterations
+            on the mask sheets against ``"additive"``, ``M + Q``.
 
         ``extra`` (3n x 3n, vertex-major, positive semi-definite; the contact barrier's
         Hessian) is added to the Hessian and to the coarse matrix. ``coarse_factor``, one
@@ -398,8 +501,9 @@ class ReducedHessian:
 
         Returns
         -------
-        (apply_H, apply_P)
-            Functions acting on ``(n, 3)`` arrays; None when the coarse matrix is not
+        CGOperator or None
+            Functions acting on ``(n, 3)`` arrays zero at the pinned vertex (CG's vectors; the
+            Hessian product does not read that row); None when the coarse matrix is not
             positive definite.
         """
         steps = self.steps
@@ -410,9 +514,10 @@ class ReducedHessian:
             return None
         J = self.jacobian(lin, rest) if J is None else J
         Jt = J.T
-        pin, free, apply_L, fine_solve = steps.pin, steps.free, steps.apply_L, steps.approx_solve_free
+        # CG's vectors are zero at the pinned vertex, and so is the product there
+        pin, free, apply_L, fine_solve = steps.pin, steps.free, steps.apply_L_free, steps.approx_solve_free
         scale = 2.0 * (1.0 + mu)
-        two_level = self.two_level
+        two_level = check_choice("two_level", self.two_level, TWO_LEVELS)
 
         def apply_H(v):
             out = scale * apply_L(v) - 2.0 * (Jt @ (J @ v.ravel())).reshape(-1, 3)
@@ -429,6 +534,12 @@ class ReducedHessian:
             z[free] = fine_solve(r[free]) / scale
             return z
 
+        if two_level == "deflated":
+            def apply_P(r):
+                z = fine(r)
+                return z + coarse(r - apply_H(z))
+            return CGOperator(apply_H, apply_P, start=coarse)
+
         def apply_P(r):
             if two_level == "additive":
                 return fine(r) + coarse(r)
@@ -436,7 +547,7 @@ class ReducedHessian:
             z += fine(r - apply_H(z))
             return z + coarse(r - apply_H(z))
 
-        return apply_H, apply_P
+        return CGOperator(apply_H, apply_P)
 
     @functools.cached_property
     def block_pattern(self):
@@ -446,12 +557,12 @@ class ReducedHessian:
         return BlockPattern.of(self.steps.cells, self.steps.n)
 
     def _device_L(self, xp):
-        """``L`` (n x n) on the array module ``xp`` (kept for the next call)."""
+        """``L`` with the pinned row and column zero (``steps.L_free``) on the array module ``xp`` (kept for the next call)."""
         from gdfe.solver.device import to_device_sparse
 
         cached = self.__dict__.get("_L_on")
         if cached is None or cached[0] is not xp:
-            cached = self.__dict__["_L_on"] = (xp, to_device_sparse(self.steps.L.tocsr(), xp))
+            cached = self.__dict__["_L_on"] = (xp, to_device_sparse(self.steps.L_free, xp))
         return cached[1]
 
     def amg_operator(self, lin, rest, mu, ml, extra=None, J=None, xp=np):
@@ -464,7 +575,7 @@ class ReducedHessian:
 
         Returns
         -------
-        (apply_H, apply_P)
+        CGOperator
             Functions acting on ``(n, 3)`` arrays of ``xp``.
         """
         from gdfe.solver.device import to_device_sparse
@@ -474,7 +585,7 @@ class ReducedHessian:
         J = self.jacobian(lin, rest) if J is None else J
         scale = 2.0 * (1.0 + mu)
         if xp is np:
-            Jd, Jtd, apply_L = J, J.T, steps.apply_L
+            Jd, Jtd, apply_L = J, J.T, steps.apply_L_free
         else:
             Jd = to_device_sparse(J, xp)
             Jtd = Jd.T.tocsr()
@@ -494,7 +605,7 @@ class ReducedHessian:
             z[pin] = 0.0
             return z
 
-        return apply_H, apply_P
+        return CGOperator(apply_H, apply_P)
 
 
 def _dot(a, b):
@@ -505,28 +616,40 @@ def _dot(a, b):
     return float((a * b).sum())
 
 
-def pcg(apply_H, apply_P, rhs, rtol, max_iter):
-    """Preconditioned CG from 0; stops at negative curvature.
+def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None):
+    """Preconditioned CG; stops at negative curvature.
 
     ``rhs`` and what ``apply_H`` and ``apply_P`` return are arrays of one module (NumPy or CuPy).
     ``rtol`` is relative to the preconditioned norm ``sqrt(rhs^T P rhs)`` of the right-hand
     side; it may be a function of that norm (a forcing sequence that measures the gradient
     in the norm CG stops in, :func:`cg_directions`).
 
+    ``start`` (optional) gives the first iterate ``x0 = start(rhs)``, the coarse solution of
+    a deflated CG (:meth:`ReducedHessian.operator`); the right-hand side's norm is then
+    ``sqrt(rhs^T x0 + r0^T P r0)`` (``r0 = rhs - H x0``), the balancing preconditioner's
+    ``rhs^T P rhs`` that the same CG started from zero measures.
+
     Returns
     -------
     x : array like ``rhs``
     iterations : int
     """
-    x = rhs * 0.0
-    r = rhs.copy()
+    if start is None:
+        x = rhs * 0.0
+        r = rhs.copy()
+    else:
+        x = start(rhs)
+        r = rhs - apply_H(x)
     z = apply_P(r)
     rz = _dot(r, z)
+    norm2 = rz if start is None else rz + _dot(rhs, x)
     if not rz > 0:
         return x, 0
     if callable(rtol):
-        rtol = rtol(float(np.sqrt(rz)))
-    stop = rtol * float(np.sqrt(rz))
+        rtol = rtol(float(np.sqrt(norm2)))
+    stop = rtol * float(np.sqrt(norm2))
+    if np.sqrt(rz) <= stop:
+        return x, 0
     p = z
     for k in range(1, max_iter + 1):
         Hp = apply_H(p)
@@ -658,7 +781,11 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200, forcing="e
     def directions(Q, S, grad, res, extra=None, error=np.inf, target=0.0, V=None):
         lin = hessian.linearise(Q, S, rest, floor=floor)
         rtol = _forcing(cg_rtol, forcing, history, res, target, error)
-        may_reuse = extra is None and error <= COARSE_REUSE  # only a first try may reuse the last factor
+        # only a first try may reuse the last factor, and only with the balancing forms: the deflated one
+        # needs the coarse matrix of this iterate (with one made at the last, CG stalled on the soft modes
+        # near the solution of the 10^4-cell twist, 200 iterations where it took 10; falling back to the
+        # balancing form with a reused factor took the 10^5 twist's fine solve from 21.0 s to 25.4 s)
+        may_reuse = extra is None and error <= COARSE_REUSE and hessian.two_level != "deflated"
         J = hessian.jacobian(lin, rest)  # the same for every damping tried at this iterate
 
         def step(mu):
@@ -675,7 +802,7 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200, forcing="e
                 if extra is None:
                     kept.update(factor=fc, mu=mu)
             ops = hessian.operator(lin, rest, mu, extra, coarse_factor=fc, J=J)
-            x, k = pcg(*ops, -grad, rtol, cg_max)
+            x, k = pcg(ops.apply_H, ops.apply_P, -grad, rtol, cg_max, start=ops.start)
             log.debug("CG: %d iterations to %.1e", k, history["eta"] if callable(rtol) else rtol)
             return x, k
         return step
@@ -736,8 +863,8 @@ def _amg_directions(hessian, rest, floor, cg_rtol, cg_max, forcing, device):
                 log.debug("AMG: levels %s, operator complexity %.2f, %.2f s", ml.sizes, ml.complexity,
                           time.perf_counter() - t0)
                 kept.update(ml=ml, mu=mu, builds=kept.get("builds", 0) + 1)
-            apply_H, apply_P = hessian.amg_operator(lin, rest, mu, ml, extra=extra, J=J, xp=xp)
-            x, k = pcg(apply_H, apply_P, g, rtol, cg_max)
+            ops = hessian.amg_operator(lin, rest, mu, ml, extra=extra, J=J, xp=xp)
+            x, k = pcg(ops.apply_H, ops.apply_P, g, rtol, cg_max)
             kept["cg"] = k
             log.debug("CG (AMG): %d iterations to %.1e", k, history["eta"] if callable(rtol) else rtol)
             return dev.to_host(x), k
