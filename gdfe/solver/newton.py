@@ -115,8 +115,8 @@ def _cross(p):
 
 #: Cells per chunk when a 3m x 3n matrix is built from per-cell blocks (bounds the temporaries).
 _CHUNK = 65_536
-#: Cells per slab of ``J Z`` when the coarse matrix is summed (bounds its memory at 10^6 cells).
-_COARSE_CHUNK = 262_144
+#: Cells per slab when the coarse matrix is summed (:meth:`CoarseCells.gram`; bounds its memory at 10^6 cells).
+_COARSE_CHUNK = 65_536
 
 
 def _block_rows(lin, p, pattern):
@@ -268,6 +268,7 @@ class CoarseCells:
         blocks = np.empty((g, 24, 24))
         starts = self.starts
         # coarse cells in slabs of about _COARSE_CHUNK cells: the stacked blocks' memory stays bounded
+        # (about 600 bytes per cell of a slab, with the temporaries of _cell_blocks)
         edges = np.unique(np.concatenate([np.searchsorted(starts, np.arange(0, starts[-1], _COARSE_CHUNK)), [g]]))
         for g0, g1 in zip(edges[:-1], edges[1:]):
             cells = self.order[starts[g0]:starts[g1]]
