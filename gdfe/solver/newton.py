@@ -192,6 +192,8 @@ class CoarseSpace:
     corners : (m, 8) int array
         The columns of ``Z`` at the corners of the coarse cell each cell lies in
         (``(a, b, l)`` in x, y and layer, ``4 a + 2 b + l``).
+    coarse_cell : (m,) int array
+        A label of that coarse cell (its cells share their ``corners``).
     spacing : int
         The coarse grid's spacing, in cells.
     ijk : (n, 3) int array
@@ -204,6 +206,7 @@ class CoarseSpace:
     corners: np.ndarray
     spacing: int
     ijk: np.ndarray
+    coarse_cell: np.ndarray
 
     @functools.cached_property
     def Z3(self):
@@ -212,7 +215,7 @@ class CoarseSpace:
     @functools.cached_property
     def cells(self) -> CoarseCells:
         """The cells grouped by coarse cell (:class:`CoarseCells`), made on first use."""
-        return CoarseCells.of(self.corners, self.Z.shape[1])
+        return CoarseCells.of(self.coarse_cell, self.corners, self.Z.shape[1], self.Lc3)
 
 
 @dataclasses.dataclass(eq=False)
@@ -238,6 +241,9 @@ class CoarseCells:
         The CSR pattern of the sum of the blocks (3k x 3k).
     scatter : (g * 576,) int array
         The index into that pattern's values of every block entry.
+    L_values : (nnz,) float array or None
+        ``Lc3`` (:class:`CoarseSpace`) on that pattern, so that the coarse matrix is made on it
+        with no sparse sum or conversion (None where ``Lc3`` has entries outside it).
     """
 
     order: np.ndarray
@@ -246,11 +252,13 @@ class CoarseCells:
     indptr: np.ndarray
     indices: np.ndarray
     scatter: np.ndarray
+    L_values: np.ndarray | None = None
 
     @classmethod
-    def of(cls, corners, k):
-        """From every cell's corner columns ``corners`` ``(m, 8)`` on a coarse grid of ``k`` vertices."""
-        _, group, counts = np.unique(corners, axis=0, return_inverse=True, return_counts=True)
+    def of(cls, coarse_cell, corners, k, Lc3=None):
+        """From every cell's coarse cell (any integer label) and corner columns ``corners`` ``(m, 8)``
+        on a coarse grid of ``k`` vertices; with ``Lc3`` (3k x 3k), its values on the pattern too."""
+        _, group, counts = np.unique(coarse_cell, return_inverse=True, return_counts=True)
         group = group.ravel()
         order = np.argsort(group, kind="stable")
         starts = np.concatenate([[0], np.cumsum(counts)])
@@ -259,11 +267,23 @@ class CoarseCells:
         flat = (columns[:, :, None] * n + columns[:, None, :]).ravel()
         keys, scatter = np.unique(flat, return_inverse=True)
         indptr = np.concatenate([[0], np.cumsum(np.bincount(keys // n, minlength=n))])
+        L_values = None
+        if Lc3 is not None:  # L's coarse matrix couples only corners of one coarse cell: inside the pattern
+            Lc = Lc3.tocoo()
+            lkeys = Lc.row.astype(np.int64) * n + Lc.col
+            at = np.minimum(np.searchsorted(keys, lkeys), keys.size - 1)
+            if np.array_equal(keys[at], lkeys):
+                L_values = np.bincount(at, weights=Lc.data, minlength=keys.size)
         return cls(order=order, starts=starts, columns=columns, indptr=indptr,
-                   indices=(keys % n).astype(np.int32), scatter=scatter.ravel())
+                   indices=(keys % n).astype(np.int32), scatter=scatter.ravel(), L_values=L_values)
 
     def gram(self, lin, pc):
         """``(J Z)^T (J Z)`` (3k x 3k, CSR) from the linearisation ``lin`` and the coarse rest shapes ``pc``."""
+        n = self.indptr.size - 1
+        return sp.csr_matrix((self.gram_values(lin, pc), self.indices, self.indptr), shape=(n, n))
+
+    def gram_values(self, lin, pc):
+        """The values of :meth:`gram` on the pattern ``indptr``, ``indices``."""
         g = self.columns.shape[0]
         blocks = np.empty((g, 24, 24))
         starts = self.starts
@@ -279,9 +299,7 @@ class CoarseCells:
             G[np.repeat(np.arange(g1 - g0), counts), slot] = D
             G = G.reshape(g1 - g0, -1, 24)
             np.matmul(G.transpose(0, 2, 1), G, out=blocks[g0:g1])
-        n = self.indptr.size - 1
-        data = np.bincount(self.scatter, weights=blocks.ravel(), minlength=self.indices.size)
-        return sp.csr_matrix((data, self.indices, self.indptr), shape=(n, n))
+        return np.bincount(self.scatter, weights=blocks.ravel(), minlength=self.indices.size)
 
 
 class CGOperator(typing.NamedTuple):
@@ -392,6 +410,7 @@ class ReducedHessian:
         Zf = Z[steps.free]
         Lc3 = sp.kron(Zf.T @ steps.L_ff @ Zf, sp.eye(3), format="csc")
         return CoarseSpace(Z=Z, Lc3=Lc3, Zt=Z.T.tocsr(), corners=column[keys].astype(np.int32), spacing=c,
+                           coarse_cell=keys[:, 0],
                            ijk=ijk.astype(np.int32))
 
     def _corner_weights(self, s, e):
@@ -463,7 +482,13 @@ class ReducedHessian:
     def coarse_matrix(self, lin, rest, mu, extra=None):
         """``Z3^T H Z3``: the Hessian with damping ``max(mu, MU_MIN)`` on the coarse grid (3k x 3k, CSC)."""
         cs = self.coarse
-        Hc = (2.0 * (1.0 + max(mu, MU_MIN))) * cs.Lc3 - 2.0 * cs.cells.gram(lin, self.coarse_rest(rest))
+        cc, scale = cs.cells, 2.0 * (1.0 + max(mu, MU_MIN))
+        if cc.L_values is not None:  # symmetric: its CSR arrays are its CSC arrays
+            n = cc.indptr.size - 1
+            data = scale * cc.L_values - 2.0 * cc.gram_values(lin, self.coarse_rest(rest))
+            Hc = sp.csc_matrix((data, cc.indices, cc.indptr), shape=(n, n))
+        else:
+            Hc = scale * cs.Lc3 - 2.0 * cc.gram(lin, self.coarse_rest(rest))
         if extra is not None:
             Hc = Hc + cs.Z3.T @ extra @ cs.Z3
         return sp.csc_matrix(Hc)
