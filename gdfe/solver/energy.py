@@ -389,12 +389,17 @@ class LocalGlobal:
         if self._L is not None:
             return self._L @ V
         out = self.L_free @ V
-        fp = self.L_fp.tocoo()  # the pinned column's few entries
+        rows, values = self._pinned_column
         vp = V[self.pin]
-        rows = self.free[fp.row]
-        out[rows] += fp.data[:, None] * vp
-        out[self.pin] = fp.data @ V[rows] + self._L_pp * vp  # L is symmetric: its pinned row is L_fp^T
+        out[rows] += values[:, None] * vp
+        out[self.pin] = values @ V[rows] + self._L_pp * vp  # L is symmetric: its pinned row is L_fp^T
         return out
+
+    @functools.cached_property
+    def _pinned_column(self):
+        """The vertices (full numbering) and values of the pinned column's entries off the diagonal."""
+        fp = self.L_fp.tocoo()
+        return self.free[fp.row], fp.data
 
     @functools.cached_property
     def factor(self):

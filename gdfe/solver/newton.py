@@ -241,9 +241,9 @@ class CoarseCells:
         The CSR pattern of the sum of the blocks (3k x 3k).
     scatter : (g * 576,) int array
         The index into that pattern's values of every block entry.
-    L_values : (nnz,) float array or None
-        ``Lc3`` (:class:`CoarseSpace`) on that pattern, so that the coarse matrix is made on it
-        with no sparse sum or conversion (None where ``Lc3`` has entries outside it).
+    L_values : (nnz,) float array
+        ``Lc3`` (:class:`CoarseSpace`) on that pattern (which holds its entries too), so that the
+        coarse matrix is made on it with no sparse sum or conversion.
     """
 
     order: np.ndarray
@@ -252,38 +252,28 @@ class CoarseCells:
     indptr: np.ndarray
     indices: np.ndarray
     scatter: np.ndarray
-    L_values: np.ndarray | None = None
+    L_values: np.ndarray
 
     @classmethod
-    def of(cls, coarse_cell, corners, k, Lc3=None):
-        """From every cell's coarse cell (any integer label) and corner columns ``corners`` ``(m, 8)``
-        on a coarse grid of ``k`` vertices; with ``Lc3`` (3k x 3k), its values on the pattern too."""
+    def of(cls, coarse_cell, corners, k, Lc3):
+        """From every cell's coarse cell (any integer label), its corner columns ``corners`` ``(m, 8)``
+        on a coarse grid of ``k`` vertices, and ``Lc3`` (3k x 3k)."""
         _, group, counts = np.unique(coarse_cell, return_inverse=True, return_counts=True)
-        group = group.ravel()
-        order = np.argsort(group, kind="stable")
+        order = np.argsort(group.ravel(), kind="stable")
         starts = np.concatenate([[0], np.cumsum(counts)])
         columns = (3 * corners[order[starts[:-1]]].astype(np.int64)[:, :, None] + np.arange(3)).reshape(-1, 24)
         n = 3 * k
         flat = (columns[:, :, None] * n + columns[:, None, :]).ravel()
-        keys, scatter = np.unique(flat, return_inverse=True)
+        Lc = Lc3.tocoo()
+        lkeys = Lc.row.astype(np.int64) * n + Lc.col
+        keys, at = np.unique(np.concatenate([flat, lkeys]), return_inverse=True)
+        at = at.ravel()
         indptr = np.concatenate([[0], np.cumsum(np.bincount(keys // n, minlength=n))])
-        L_values = None
-        if Lc3 is not None:  # L's coarse matrix couples only corners of one coarse cell: inside the pattern
-            Lc = Lc3.tocoo()
-            lkeys = Lc.row.astype(np.int64) * n + Lc.col
-            at = np.minimum(np.searchsorted(keys, lkeys), keys.size - 1)
-            if np.array_equal(keys[at], lkeys):
-                L_values = np.bincount(at, weights=Lc.data, minlength=keys.size)
-        return cls(order=order, starts=starts, columns=columns, indptr=indptr,
-                   indices=(keys % n).astype(np.int32), scatter=scatter.ravel(), L_values=L_values)
-
-    def gram(self, lin, pc):
-        """``(J Z)^T (J Z)`` (3k x 3k, CSR) from the linearisation ``lin`` and the coarse rest shapes ``pc``."""
-        n = self.indptr.size - 1
-        return sp.csr_matrix((self.gram_values(lin, pc), self.indices, self.indptr), shape=(n, n))
+        return cls(order=order, starts=starts, columns=columns, indptr=indptr, indices=(keys % n).astype(np.int32),
+                   scatter=at[:flat.size], L_values=np.bincount(at[flat.size:], weights=Lc.data, minlength=keys.size))
 
     def gram_values(self, lin, pc):
-        """The values of :meth:`gram` on the pattern ``indptr``, ``indices``."""
+        """``(J Z)^T (J Z)``: its values on the pattern ``indptr``, ``indices``, from the linearisation ``lin`` and the coarse rest shapes ``pc``."""
         g = self.columns.shape[0]
         blocks = np.empty((g, 24, 24))
         starts = self.starts
@@ -483,15 +473,12 @@ class ReducedHessian:
         """``Z3^T H Z3``: the Hessian with damping ``max(mu, MU_MIN)`` on the coarse grid (3k x 3k, CSC)."""
         cs = self.coarse
         cc, scale = cs.cells, 2.0 * (1.0 + max(mu, MU_MIN))
-        if cc.L_values is not None:  # symmetric: its CSR arrays are its CSC arrays
-            n = cc.indptr.size - 1
-            data = scale * cc.L_values - 2.0 * cc.gram_values(lin, self.coarse_rest(rest))
-            Hc = sp.csc_matrix((data, cc.indices, cc.indptr), shape=(n, n))
-        else:
-            Hc = scale * cs.Lc3 - 2.0 * cc.gram(lin, self.coarse_rest(rest))
+        n = cc.indptr.size - 1
+        data = scale * cc.L_values - 2.0 * cc.gram_values(lin, self.coarse_rest(rest))
+        Hc = sp.csc_matrix((data, cc.indices, cc.indptr), shape=(n, n))  # symmetric: its CSR arrays are its CSC ones
         if extra is not None:
-            Hc = Hc + cs.Z3.T @ extra @ cs.Z3
-        return sp.csc_matrix(Hc)
+            Hc = sp.csc_matrix(Hc + cs.Z3.T @ extra @ cs.Z3)
+        return Hc
 
     def coarse_factor(self, lin, rest, mu, extra=None):
         """:meth:`coarse_matrix` factorised; None when it is singular."""
@@ -513,8 +500,9 @@ class ReducedHessian:
             there, every CG residual is H-orthogonal to the coarse space (``Q r = 0``), where
             it gives the iterates of ``"multiplicative"`` (their Theorem: the balancing
             preconditioner and A-DEF2 from that start are equal) for one Hessian product and
-            one coarse solve per CG iteration fewer; it is as robust as the balancing one to a
-            coarse matrix made at an earlier iterate (:data:`COARSE_REUSE`).
+            one coarse solve per CG iteration fewer. It needs the coarse matrix of this
+            iterate: with one made at an earlier iterate (:data:`COARSE_REUSE`) CG stalled near
+            the 10^4-cell twist's solution, so :func:`cg_directions` reuses none with it.
         ``"multiplicative"``
             Symmetrically, coarse - fine - coarse (the balancing Neumann-Neumann
             preconditioner ``Q + (I - Q H) M (I - H Q)``), which halves the CG iterations
@@ -811,7 +799,8 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200, forcing="e
         # needs the coarse matrix of this iterate (with one made at the last, CG stalled on the soft modes
         # near the solution of the 10^4-cell twist, 200 iterations where it took 10; falling back to the
         # balancing form with a reused factor took the 10^5 twist's fine solve from 21.0 s to 25.4 s)
-        may_reuse = extra is None and error <= COARSE_REUSE and hessian.two_level != "deflated"
+        reusable = extra is None and hessian.two_level != "deflated"
+        may_reuse = reusable and error <= COARSE_REUSE
         J = hessian.jacobian(lin, rest)  # the same for every damping tried at this iterate
 
         def step(mu):
@@ -821,11 +810,11 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200, forcing="e
             fc = kept["factor"] if may_reuse and same else None
             may_reuse = False
             if fc is None:
+                kept.clear()  # the last factor is not held while the next is made
                 fc = hessian.coarse_factor(lin, rest, mu, extra)
                 if fc is None:
                     return None, 0
-                kept.clear()
-                if extra is None:
+                if reusable:
                     kept.update(factor=fc, mu=mu)
             ops = hessian.operator(lin, rest, mu, extra, coarse_factor=fc, J=J)
             x, k = pcg(ops.apply_H, ops.apply_P, -grad, rtol, cg_max, start=ops.start)
