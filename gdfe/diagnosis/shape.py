@@ -67,8 +67,8 @@ from gdfe._validation import GdfeError, check_array, check_choice, check_number,
 from gdfe.diagnosis.align import align_icp
 from gdfe.diagnosis.regions import design_regions
 from gdfe.diagnosis.scan import check_points, load_measured
-from gdfe.diagnosis.shape_forms import (EFFECT_OVER_FLOOR, NAME_GAIN, RIVAL_TOL, FormFit, beyond, credit,
-                                        fit_film_forms, scan_noise)
+from gdfe.diagnosis.shape_forms import (EFFECT_OVER_FLOOR, NAME_GAIN, RIVAL_TOL, Credit, FormFit, beyond, credit,
+                                        fit_film_forms, level_of, scan_noise)
 from gdfe.diagnosis.surface import Surface
 
 __all__ = ["ShapeDiagnosis", "diagnose_shape", "NAME_GAIN", "RIVAL_TOL", "ALIGNMENTS", "MATCH_RESIDUAL",
@@ -585,18 +585,19 @@ def diagnose_shape(design, measured, *, align="auto", correct=True, options=None
     table = _region_table(comp, regions, R0, sim0, dev, owner)
     transform = {"Q": comp.Q.tolist(), "t": comp.t.tolist()}
     noise = scan_noise(design, comp.measured @ comp.Q.T + comp.t, sim0, owner, faces=comp.faces)
-    fit = _Correction(named=[], fitted={}, rms_after=rms0, forms=[], outcome="not_fitted", credited=None,
-                      not_ruled_out=[], level=float(np.hypot(floor or 0.0, noise)), gain=0.0)
+    fit = _Correction(named=[], fitted={}, rms_after=rms0, forms=[],
+                      credit=Credit("not_fitted", None, [], level_of(floor, noise), 0.0))
     if correct:
         fit = _correct(comp, regions, table, R0, rms0, r_span, floor, noise)
+    c = fit.credit
     return ShapeDiagnosis(
         design_path=design_path, measured_path=measured_path, method=comp.method,
         n_measured=int(len(measured)), rms_before=rms0, rms_after=fit.rms_after, element_deviation=elem,
         regions=table, named=fit.named, corrected_R=fit.fitted, converged=comp.converged,
         n_simulations=comp.n_sims, transform=transform, matches=True, match=match,
-        forms=[f.as_dict() for f in fit.forms], outcome=fit.outcome,
-        credited=fit.credited.as_dict() if fit.credited is not None else None, not_ruled_out=fit.not_ruled_out,
-        floor=floor, noise=noise, level=fit.level, gain=fit.gain)
+        forms=[f.as_dict() for f in fit.forms], outcome=c.outcome,
+        credited=c.credited.as_dict() if c.credited is not None else None, not_ruled_out=c.not_ruled_out,
+        floor=floor, noise=noise, level=c.level, gain=c.gain)
 
 
 def _region_table(comp, regions, R0, sim0, dev, owner):
@@ -622,11 +623,7 @@ class _Correction:
     fitted: dict
     rms_after: float
     forms: list
-    outcome: str
-    credited: FormFit | None
-    not_ruled_out: list
-    level: float
-    gain: float
+    credit: Credit
 
 
 def _correct(comp, regions, table, R0, rms0, r_span, floor, noise):
@@ -654,8 +651,7 @@ def _correct(comp, regions, table, R0, rms0, r_span, floor, noise):
         for row in table:
             row["R_fit"] = fitted.get(row["name"], row["R_design"])
             row["rms_after"] = _region_rms(comp.design, regions[row["name"]], dev1, owner1)
-    return _Correction(named=named, fitted=fitted, rms_after=rms_after, forms=forms, outcome=c.outcome,
-                       credited=c.credited, not_ruled_out=c.not_ruled_out, level=c.level, gain=c.gain)
+    return _Correction(named=named, fitted=fitted, rms_after=rms_after, forms=forms, credit=c)
 
 
 def _fit_regions(comp, regions, names, R0, start, r_span, sweeps=2):

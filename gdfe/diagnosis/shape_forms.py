@@ -65,7 +65,7 @@ from gdfe.mesh import HexMesh
 from gdfe.physical_ranges import RANGES
 
 __all__ = ["FormFit", "Credit", "NAME_GAIN", "RIVAL_TOL", "EFFECT_OVER_FLOOR", "mirrored", "anisotropic_design", "shifted_coat",
-           "fit_anisotropy", "fit_offset", "fit_film_forms", "scan_noise", "beyond", "credit"]
+           "fit_anisotropy", "fit_offset", "fit_film_forms", "scan_noise", "beyond", "level_of", "credit"]
 
 #: A form is named when it removes at least this share of the deviation beyond the floor.
 NAME_GAIN = 0.2
@@ -364,6 +364,14 @@ def beyond(rms, floor):
     return float(math.sqrt(max(rms * rms - floor * floor, 0.0)))
 
 
+def level_of(floor, noise):
+    """The RMS deviation [mm] a scan must exceed for a gap: ``sqrt(floor^2 + noise^2)`` (a floor of
+    None and a noise that could not be estimated, NaN, count as 0)."""
+    floor = 0.0 if floor is None else float(floor)
+    noise = float(noise) if np.isfinite(noise) else 0.0
+    return math.hypot(floor, noise)
+
+
 def credit(forms, rms0, floor=None, noise=0.0):
     """What the fitted forms let a diagnosis credit (see the module docstring).
 
@@ -382,8 +390,7 @@ def credit(forms, rms0, floor=None, noise=0.0):
     Credit
     """
     floor = 0.0 if floor is None else float(floor)
-    noise = 0.0 if not np.isfinite(noise) else float(noise)
-    level = math.hypot(floor, noise)
+    level = level_of(floor, noise)
     ranked = sorted(forms, key=lambda f: f.rms_after)
     if not ranked:
         return Credit("no_form", None, [], level, 0.0)
