@@ -114,6 +114,70 @@ def test_gap_between_facing_plates(gap):
     assert far.min_gap_mm is None  # beyond the search range (h / 4)
 
 
+def _spiral(gap, cells=60, pixel=0.1, width=4):
+    """A strip rolled one and a fifth turns: its last fifth lies ``gap`` inside its first, both curved."""
+    des = gdfe.from_rows(["R" * cells] * width, R=1.0, h=H, pixel=pixel, nz=1)
+    X = des.mesh.points
+    rho0 = cells * pixel / (2 * math.pi * 1.2)
+    theta = X[:, 0] / rho0
+    rho = rho0 - (H + gap) * theta / (2 * math.pi) + (X[:, 2] - H / 2)
+    return des, np.column_stack([rho * np.cos(theta), X[:, 1], -rho * np.sin(theta)])  # orientation kept
+
+
+def _brute_force_facing(check, X):
+    """The facing pairs of the module docstring from every boundary vertex and triangle, no search, no prefilter."""
+    r = check.gap_range
+    tris = check.tris
+    A, B, C = X[tris[:, 0]], X[tris[:, 1]], X[tris[:, 2]]
+    N = np.cross(B - A, C - A)
+    vn = np.zeros_like(X)
+    for k in range(3):
+        np.add.at(vn, tris[:, k], N)
+    vn /= np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
+    vi, tj = (a.ravel() for a in np.meshgrid(check.surface, np.arange(len(tris)), indexing="ij"))
+    p = X[vi]
+    q = point_triangle_closest(p, A[tj], B[tj], C[tj])
+    dist = np.linalg.norm(p - q, axis=1)
+    s = np.einsum("ij,ij->i", p - A[tj], N[tj] / np.linalg.norm(N[tj], axis=1, keepdims=True))
+    ok = ((s > 1e-9 * r) & (s <= r) & (np.einsum("ij,ij->i", p - q, N[tj]) > 0) & (dist <= r)
+          & (np.einsum("ij,ij->i", q - p, vn[vi]) >= 0.5 * dist * dist / r) & ~check.neighbours(vi, check.owner[tj]))
+    return vi[ok], tj[ok], dist[ok]
+
+
+@pytest.mark.parametrize("gap", [0.012, 0.04])
+def test_gap_of_a_rolled_strip_equals_the_brute_force_one(gap):
+    """Curved faces facing each other across ``gap``: the searches and their prefilter lose no facing pair."""
+    import gdfe.solver.penetration as pen
+
+    des, X = _spiral(gap)
+    check = PenetrationCheck(des)
+    p = check(X)
+    assert not p.found
+    v, t, d = _brute_force_facing(check, X)
+    assert v.size > 100
+    tri = pen._Triangles(X[check.tris[:, 0]], X[check.tris[:, 1]], X[check.tris[:, 2]])
+    v2, t2, d2 = check._facing_search(X, tri)(check.surface)
+    assert sorted(zip(v2.tolist(), t2.tolist())) == sorted(zip(v.tolist(), t.tolist()))
+    assert p.min_gap_mm == pytest.approx(d.min(), rel=1e-12)
+    assert p.min_gap_mm == pytest.approx(gap, rel=0.05)  # the facing faces are two nearly parallel arcs
+
+
+def test_check_answers_the_same_in_any_chunks_and_threads(monkeypatch):
+    """The 9 mm hinge's overlap and a rolled strip's gap, whole and in small chunks, on one thread and on three."""
+    import gdfe.solver.penetration as pen
+
+    res = gdfe.simulate(gdfe.hinge(9.0, d=0.33), contact="off")
+    cases = [(res.design, res.points), _spiral(0.02)]
+    answers = []
+    for workers, chunk, gap_chunk in ((1, pen._CHUNK, pen._GAP_CHUNK), (3, 97, 13)):
+        monkeypatch.setattr(pen, "CHECK_WORKERS", workers)
+        monkeypatch.setattr(pen, "_CHUNK", chunk)
+        monkeypatch.setattr(pen, "_GAP_CHUNK", gap_chunk)
+        answers.append([PenetrationCheck(des)(X) for des, X in cases])
+    assert answers[0][0].found and answers[0][0].intersecting_pairs > 100 and answers[0][1].min_gap_mm is not None
+    assert answers[0] == answers[1]
+
+
 def test_check_is_invariant_under_rigid_motions():
     des, X = _plates(overlap=0.05)
     rng = np.random.default_rng(3)
