@@ -171,6 +171,13 @@ def _public(result):
     return {k: v for k, v in result.items() if not str(k).startswith("_")}
 
 
+def _regression_cell(h):
+    """The regression column of a headline: pass or FAIL, or for a speed goal whether it was met."""
+    if h.get("goal"):
+        return "speed goal " + ("met" if h.get("holds") else "<span class=fail>not met</span>")
+    return "<span class=pass>pass</span>" if h.get("passed") else "<span class=fail>FAIL</span>"
+
+
 def _fmt(v):
     if v is None:
         return ""
@@ -253,7 +260,7 @@ def _html(summary, results, view_html=""):
                     f"<tr><td>{e(h['name'])}</td><td>{paper}</td><td>{_fmt(h['ours'])} {unit}</td>"
                     f"<td>{e(h.get('tolerance', ''))}</td><td>{_fmt(h.get('holds'))}</td>"
                     f"<td>{'holds' if h.get('expect', True) else 'does not hold'}</td>"
-                    f"<td>{'<span class=pass>pass</span>' if h.get('passed') else '<span class=fail>FAIL</span>'}</td>"
+                    f"<td>{_regression_cell(h)}</td>"
                     f"<td class=note>{e(h.get('note', ''))}</td></tr>")
             parts.append("</table>")
         if not r.get("converged", True):

@@ -146,3 +146,22 @@ def test_every_registered_study_runs_at_its_coarsest_resolution(name, coarse_stu
         json.loads(path.read_text())  # complete JSON
     if "files" in result:
         assert (out / result["files"]["png"]).is_file() and (out / result["files"]["json"]).is_file()
+
+
+def test_a_speed_goal_is_reported_with_its_verdict_but_is_no_regression():
+    """A headline marked ``goal`` (seconds on the machine at hand) says whether the goal is met and
+    never fails a study: on a loaded machine the same code takes twice as long."""
+    from studies._common import format_headlines, headline
+
+    slow = headline("diagnosis of 2000 rows, processor time [s]", 75.0, tol=60.0, kind="le", unit="s",
+                    goal=True, paper_text="10,000 rows in <= 60 s")
+    fast = headline("the same, fast", 20.0, tol=60.0, kind="le", unit="s", goal=True)
+    check = headline("an angle", 1.2, paper=1.0, tol=0.1)
+    assert (slow["holds"], slow["passed"], slow["goal"]) == (False, True, True)
+    assert (fast["holds"], fast["passed"]) == (True, True)
+    assert (check["holds"], check["passed"], check["goal"]) == (False, False, False)
+    text = format_headlines({"figure": "f", "title": "t", "resolution": "coarse", "headlines": [slow, fast, check]})
+    lines = text.splitlines()
+    assert "NOT MET" in lines[1] and "REGRESSION" not in lines[1]
+    assert "met" in lines[2] and "NOT MET" not in lines[2]
+    assert "REGRESSION" in lines[3]

@@ -278,47 +278,50 @@ def _lm(model, tr, Y, data, W, max_iter=200, tol=1e-12):
     cost : (B,) float array
         Weighted residual sums of squares.
     """
+    Y = np.array(Y, float)  # updated in place below: the caller's array is left as it was
     B, k = Y.shape
     sw = np.sqrt(W)
     eye = np.eye(k)
     hstep = 1e-20
     alpha = data.alpha
 
-    def residuals(Y):
+    def residuals(Y, sw):
         with np.errstate(all="ignore"):
             r = sw * (data.predict(model, tr.external(Y.T)[..., None]) - alpha)
         return np.where(np.isfinite(r), r, 1e3)
 
-    def jacobian(Y):
+    def jacobian(Y, sw):
         Yc = Y[:, None, :] + 1j * hstep * eye[None]  # (B, k, k): row j perturbs variable j
         with np.errstate(all="ignore"):
             P = data.predict(model, tr.external(np.moveaxis(Yc, 2, 0))[..., None])  # (B, k, n)
         J = np.moveaxis(P.imag / hstep, 1, 2) * sw[:, :, None]  # (B, n, k)
         return np.where(np.isfinite(J), J, 0.0)
 
-    r = residuals(Y)
+    r = residuals(Y, sw)
     cost = np.einsum("bi,bi->b", r, r)
     mu = np.full(B, 1e-3)
     active = np.ones(B, bool)
     for _ in range(max_iter):
-        if not active.any():
+        # only the problems still iterating are evaluated: the others keep their Y, r and cost
+        a = np.flatnonzero(active)
+        if a.size == 0:
             break
-        J = jacobian(Y)
+        Ya, ra, ca, mua = Y[a], r[a], cost[a], mu[a]
+        J = jacobian(Ya, sw[a])
         A = np.einsum("bik,bil->bkl", J, J)
-        g = np.einsum("bik,bi->bk", J, r)
+        g = np.einsum("bik,bi->bk", J, ra)
         diag = np.einsum("bkk->bk", A) + 1e-12
-        step = -np.linalg.solve(A + (mu[:, None] * diag)[:, :, None] * eye, g[..., None])[..., 0]
-        Yt = np.where(active[:, None], Y + step, Y)
-        rt = residuals(Yt)
+        step = -np.linalg.solve(A + (mua[:, None] * diag)[:, :, None] * eye, g[..., None])[..., 0]
+        Yt = Ya + step
+        rt = residuals(Yt, sw[a])
         ct = np.einsum("bi,bi->b", rt, rt)
-        better = active & (ct < cost)
-        gain = np.where(better, (cost - ct) / np.maximum(cost, 1e-300), 0.0)
-        Y = np.where(better[:, None], Yt, Y)
-        r = np.where(better[:, None], rt, r)
-        cost = np.where(better, ct, cost)
-        mu = np.where(better, np.maximum(mu / 3.0, 1e-12), np.minimum(mu * 4.0, 1e12))
-        active &= ~((better & (gain < tol)) | (mu >= 1e12)
-                    | (np.abs(step).max(axis=1) < 1e-12 * (1 + np.abs(Y).max(axis=1))))
+        better = ct < ca
+        gain = np.where(better, (ca - ct) / np.maximum(ca, 1e-300), 0.0)
+        Ya = np.where(better[:, None], Yt, Ya)
+        Y[a], r[a], cost[a] = Ya, np.where(better[:, None], rt, ra), np.where(better, ct, ca)
+        mu[a] = np.where(better, np.maximum(mua / 3.0, 1e-12), np.minimum(mua * 4.0, 1e12))
+        active[a] = ~((better & (gain < tol)) | (mu[a] >= 1e12)
+                      | (np.abs(step).max(axis=1) < 1e-12 * (1 + np.abs(Ya).max(axis=1))))
     return Y, cost
 
 

@@ -249,6 +249,9 @@ def strong_trends(entries, level=TREND_LEVEL, rho=TREND_RHO):
     return out
 
 
+#: The largest misses named one by one in the text of :func:`_regime` (the rest by their smallest size).
+MISSES_LISTED = 6
+
 def _regime(where, r, inputs):
     """Three sentences: the bias along the strongest trend, the bin with the largest RMS
     residual (at least 3 tests), and what the largest misses have in common."""
@@ -286,7 +289,10 @@ def _regime(where, r, inputs):
     signs = np.sign(r[top])
     verb = ("all over-predicted" if (signs < 0).all() else "all under-predicted" if (signs > 0).all()
             else "of both signs")
-    miss = (f" The {top.size} largest misses ({', '.join(f'{v:+.2f}' for v in r[top])} rad, {verb})"
+    shown = ", ".join(f"{v:+.2f}" for v in r[top[:MISSES_LISTED]]) + " rad"
+    if top.size > MISSES_LISTED:
+        shown += f" and {top.size - MISSES_LISTED} more down to {abs(r[top[-1]]):.2f} rad in size"
+    miss = (f" The {top.size} largest misses ({shown}, {verb})"
             + (f" are {', '.join(common)}." if common else " share no regime of any input."))
     return bias + conc + miss
 
