@@ -263,6 +263,49 @@ def test_newton_cg_products_and_coarse_matrix_match_the_assembled_hessian(turn, 
     assert hs.coarse.spacing >= 2 and Z3.shape[1] < Z3.shape[0] / 3  # two cells apart: about a quarter, more at the rim
 
 
+@pytest.mark.parametrize("floor, mixed", [(0.5, False), (0.9, True), (1.0, True)])
+def test_linearisation_is_the_clamped_inverse_of_every_cell(floor, mixed):
+    """``root root^T = w M0^{-1/2} W diag(1 / max(lam, floor)) W^T M0^{-1/2}`` per cell, with ``lam, W``
+    the eigenpairs of ``M0^{-1/2} M M0^{-1/2}``: the definition, against the linearisation, which takes the
+    closed-form Cholesky factor where no eigenvalue is clamped and the eigenpairs elsewhere (both occur)."""
+    from gdfe.solver.newton import _cholesky3
+
+    sv, V, o, rest, hs = _plate_newton_system(24)
+    V = V + 0.02 * np.random.default_rng(5).standard_normal(V.shape)  # cells stretched and squeezed
+    o = sv.orient(V)
+    lin = hs.linearise(o.Q, o.S, rest, floor=floor)
+    Y = np.matmul(o.Q.transpose(0, 2, 1), o.S)
+    Y = 0.5 * (Y + Y.transpose(0, 2, 1))
+    M = np.trace(Y, axis1=1, axis2=2)[:, None, None] * np.eye(3) - Y
+    lam, W = np.linalg.eigh(rest.M0is @ M @ rest.M0is)
+    N = rest.M0is @ np.einsum("mij,mj,mkj->mik", W, 1.0 / np.maximum(lam, floor), W) @ rest.M0is
+    expect = sv.w[:, None, None] * N
+    got = lin.root @ lin.root.transpose(0, 2, 1)
+    np.testing.assert_allclose(got, expect, rtol=0, atol=1e-10 * np.abs(expect).max())
+    clamped = (lam.min(axis=1) < floor).sum()
+    if mixed:
+        assert 0 < clamped < len(lam), f"{clamped} of {len(lam)} cells clamped: both paths should be tried"
+    else:
+        assert clamped == 0
+    _, pd = _cholesky3(M - floor * rest.M0)
+    np.testing.assert_array_equal(pd, lam.min(axis=1) > floor)
+
+
+def test_closed_form_cholesky_of_3x3_matrices():
+    from gdfe.solver.newton import _cholesky3, _inverse_lower3
+
+    rng = np.random.default_rng(0)
+    B = rng.standard_normal((200, 3, 3))
+    A = B @ B.transpose(0, 2, 1) + 0.1 * np.eye(3)
+    L, ok = _cholesky3(A)
+    assert ok.all()
+    np.testing.assert_allclose(L, np.linalg.cholesky(A), atol=1e-12)
+    np.testing.assert_allclose(_inverse_lower3(L), np.linalg.inv(L), atol=1e-10)
+    A[:20] -= 10.0 * np.eye(3)  # not positive definite
+    _, ok = _cholesky3(A)
+    np.testing.assert_array_equal(ok, np.linalg.eigvalsh(A).min(axis=1) > 0)
+
+
 def _plate_newton_system(n=40):
     """A 40 x 40 plate of stripes, two layers, at its linearised start: the solver, its state and the Hessian."""
     top = np.mod(np.arange(n), 6)[:, None] * np.ones((1, n), int) >= 2

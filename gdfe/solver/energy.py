@@ -192,12 +192,15 @@ class RestState:
         return cls(float(activation), P, np.einsum("mkj,mkj->m", P, P))
 
     @functools.cached_property
+    def M0(self):
+        """``M0 = tr(C) I - C`` per cell, ``(m, 3, 3)`` [mm^2], ``C = P^T P``."""
+        C = np.einsum("mki,mkj->mij", self.P, self.P)
+        return np.trace(C, axis1=1, axis2=2)[:, None, None] * np.eye(3) - C
+
+    @functools.cached_property
     def M0is(self):
         """``M0^{-1/2}`` per cell, ``(m, 3, 3)``, with ``M0 = tr(C) I - C`` and ``C = P^T P``."""
-        P = self.P
-        C = np.einsum("mki,mkj->mij", P, P)
-        M0 = np.trace(C, axis1=1, axis2=2)[:, None, None] * np.eye(3) - C
-        lam0, W0 = np.linalg.eigh(M0)
+        lam0, W0 = np.linalg.eigh(self.M0)
         return np.einsum("mij,mj,mkj->mik", W0, 1.0 / np.sqrt(np.maximum(lam0, 1e-300)), W0)
 
 

