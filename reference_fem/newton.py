@@ -60,6 +60,8 @@ class TangentSolver:
         self.aged = False
 
     def cap(self) -> int:
+        """The Krylov iterations one factorisation costs, as measured so far (in seconds: the path of
+        an inexact solve, and its shape within the stopping test, depend on the machine's load)."""
         c = self.cost
         if not (c.factorisations and c.krylov_iterations):
             return KRYLOV_MAX

@@ -156,13 +156,16 @@ def test_reused_factorisations_reach_the_same_shape_for_less():
 def test_kept_factorisations_and_one_load_step_reach_the_shape_of_plain_newton():
     # inexact Newton (GMRES preconditioned by kept factorisations), all the eigenstrain in one step,
     # against plain Newton over four load steps with a factorisation every iteration: the same
-    # stopping test, the same shape to well within what the stopping test allows
+    # stopping test, the same shape. Both well inside the default test (1e-8), so that their
+    # difference is the solver's, not the tolerance's: GMRES's cap is measured in seconds, so on a
+    # loaded machine the inexact path differs, and at 1e-8 its shape once lay 3.7e-5 of the
+    # deflection from plain Newton's (5.7e-7 on a quiet machine; 7.5e-10 at 1e-10)
     plate = _plate(("RTS", "SBR"), refine=2)
     mat = rf.BilayerMaterial()  # the full calibrated eigenstrain: a strongly nonlinear curl
-    fast = rf.solve_plate(plate, mat, steps=1)
-    plain = rf.solve_plate(plate, mat, steps=4, reuse=False)
+    fast = rf.solve_plate(plate, mat, steps=1, tol=1e-10)
+    plain = rf.solve_plate(plate, mat, steps=4, reuse=False, tol=1e-10)
     assert fast.converged and plain.converged
-    assert fast.residual < 1e-8 and plain.residual < 1e-8
+    assert fast.residual < 1e-10 and plain.residual < 1e-10
     size = np.abs(plain.displacement).max()
     assert size > 0.1  # a large deflection, not a linear problem
     assert np.abs(fast.displacement - plain.displacement).max() < 1e-5 * size
