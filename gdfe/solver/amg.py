@@ -1,4 +1,4 @@
-"""Smoothed aggregation on the Newton Hessian: a multilevel preconditioner for ``method="newton-cg"``.
+"""Smoothed aggregation on the Newton Hessian: a multilevel preconditioner for ``method="newton-cg"``, and a solver of its coarse matrix.
 
 The Hessian of the rotation-reduced energy (:class:`gdfe.solver.newton.ReducedHessian`) is
 ``2 ((1 + mu) L (x) I3 - J^T J)``, a sum of 24 x 24 cell blocks. :func:`hessian_blocks`
@@ -34,7 +34,7 @@ import scipy.sparse as sp
 from gdfe.solver import device as _device
 
 __all__ = ["AMG_MAX_COARSE", "AMG_REBUILD_CG", "available", "BlockPattern", "hessian_blocks", "rigid_modes",
-           "HessianAMG"]
+           "HessianAMG", "CoarseAMG"]
 
 log = logging.getLogger(__name__)
 
@@ -269,4 +269,44 @@ class HessianAMG:
         x = x + P @ self._cycle(R @ (b - A @ x), level + 1)
         for _ in range(self.smoothing):
             x = self._smooth(x, b, A, Dw)
+        return x
+
+
+class CoarseAMG:
+    """The coarse matrix of the two-level preconditioner, solved by smoothed-aggregation V-cycles.
+
+    What :func:`gdfe.solver.linalg.factorise` gives the two-level preconditioner of
+    ``method="newton-cg"`` (:meth:`gdfe.solver.newton.ReducedHessian.coarse_factor`), without a
+    factorisation beyond the hierarchy's coarsest level: ``solve(b)`` is ``cycles`` steps of the
+    stationary iteration ``x <- x + V(b - A x)`` from zero, ``V`` one V-cycle of
+    :class:`HessianAMG` built on ``A`` with the rigid motions of ``points`` as near-null space.
+    From zero, ``k`` such steps are the fixed operator ``sum_j (I - V A)^j V``, symmetric like
+    ``V``, so the preconditioner is the same at every CG iteration.
+
+    Parameters
+    ----------
+    A : (3k, 3k) sparse matrix
+        The coarse matrix, unknowns vertex-major (``3 q + c``), symmetric positive definite.
+    points : (k, 3) float array [mm]
+        The shape at the coarse vertices (:meth:`gdfe.solver.newton.CoarseSpace.points`).
+    cycles : int
+        V-cycles per solve.
+    max_coarse : int, optional
+        Unknowns of the hierarchy's coarsest level (default :data:`AMG_MAX_COARSE`).
+    """
+
+    def __init__(self, A, points, cycles=3, max_coarse=None):
+        A = sp.csr_matrix(A)
+        self.A = A
+        max_coarse = AMG_MAX_COARSE if max_coarse is None else int(max_coarse)
+        self.ml = HessianAMG(A.tobsr(blocksize=(3, 3)), rigid_modes(points), max_coarse=max_coarse)
+        self.cycles = int(cycles)
+        log.debug("coarse AMG: levels %s, operator complexity %.2f, %.2f s", self.ml.sizes, self.ml.complexity,
+                  self.ml.setup_s)
+
+    def solve(self, b):
+        """``cycles`` V-cycles from zero for ``b`` ``(3k,)``: an approximation of ``A^{-1} b``."""
+        x = self.ml.vcycle(b)
+        for _ in range(self.cycles - 1):
+            x = x + self.ml.vcycle(b - self.A @ x)
         return x

@@ -128,7 +128,7 @@ def linearised_start_cg(steps, hessian, V, activation=1.0, rtol=1e-6, max_iter=5
     if np.abs(grad).max() <= 1e-12 * max(np.abs(b).max(), 1e-300):  # V already minimises the model (R = 1)
         step, k = np.zeros_like(V), 0
     else:
-        step, k = pcg(apply_H, ops.apply_P, -grad, rtol, max_iter, start=ops.start)
+        step, k = pcg(apply_H, ops.apply_P, -grad, rtol, max_iter, start=ops.start, flexible=ops.flexible)
     log.debug("linearised start: %d CG iterations", k)
     # the rigid rotations are a null direction of this quadratic: CG leaves round-off along
     # them, which would turn the whole shape; keep the step's deformation, the pin held

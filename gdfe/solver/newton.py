@@ -31,7 +31,7 @@ from gdfe.solver.multigrid import lattice
 __all__ = ["MU_MIN", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "CONTACT_ALPHAS", "CONTACT_EXACT_RES", "DRIFT_WINDOW",
            "DRIFT_ENERGY", "DRIFT_SHRINK", "ON_DRIFT", "RELEASE_POINTS", "CG_RTOL_MIN", "CG_RTOL_MAX", "CG_TARGET_MARGIN",
            "EW_GAMMA", "EW_ALPHA", "FORCINGS", "MU_RESIDUAL", "MODEL_AGREEMENT", "MU_FAST", "PRECONDITIONERS",
-           "AMG_REBUILD_DAMPING", "TWO_LEVELS", "CGOperator", "forcing_term", "sqrt_forcing", "COARSE_REUSE", "COARSE_REUSE_DAMPING",
+           "AMG_REBUILD_DAMPING", "TWO_LEVELS", "COARSE_SOLVERS", "CGOperator", "forcing_term", "sqrt_forcing", "COARSE_REUSE", "COARSE_REUSE_DAMPING",
            "ReducedHessian", "Linearisation", "CoarseSpace", "CoarseCells", "pcg", "deformation", "solve_newton",
            "factorised_directions", "cg_directions"]
 
@@ -77,6 +77,9 @@ PRECONDITIONERS = ("two-level", "amg")
 #: How the two-level preconditioner combines its fine and coarse corrections
 #: (:attr:`ReducedHessian.two_level`, :meth:`ReducedHessian.operator`).
 TWO_LEVELS = ("deflated", "multiplicative", "additive")
+#: How the two-level preconditioner solves its coarse matrix (:attr:`ReducedHessian.coarse_solver`):
+#: a sparse factorisation, or smoothed-aggregation V-cycles (:class:`gdfe.solver.amg.CoarseAMG`).
+COARSE_SOLVERS = ("factor", "amg")
 #: The smoothed-aggregation hierarchy is made again when the damping moved by more than this.
 AMG_REBUILD_DAMPING = 1e-2
 #: ... and never tighter than this fraction of the reduction the stopping test still asks of the
@@ -232,6 +235,8 @@ class CoarseSpace:
         The coarse grid's spacing, in cells.
     ijk : (n, 3) int array
         Lattice indices of the vertices (:func:`gdfe.solver.multigrid.lattice`).
+    solver : {"factor", "amg"}
+        How the coarse matrix is solved (:attr:`ReducedHessian.coarse_solver`, resolved).
     """
 
     Z: sp.csr_matrix
@@ -241,6 +246,12 @@ class CoarseSpace:
     spacing: int
     ijk: np.ndarray
     coarse_cell: np.ndarray
+    solver: str = "factor"
+
+    def points(self, V):
+        """The shape ``V`` ``(n, 3)`` [mm] at the coarse vertices: each one's weighted mean of the vertices it interpolates to, ``(k, 3)``."""
+        weight = np.asarray(self.Zt.sum(axis=1)).ravel()
+        return (self.Zt @ V) / np.maximum(weight, 1e-300)[:, None]
 
     @functools.cached_property
     def Z3(self):
@@ -303,8 +314,10 @@ class CoarseCells:
         keys, at = np.unique(np.concatenate([flat, lkeys]), return_inverse=True)
         at = at.ravel()
         indptr = np.concatenate([[0], np.cumsum(np.bincount(keys // n, minlength=n))])
+        itype = np.int32 if keys.size < 2**31 else np.int64  # half the memory of the scatter (g * 576 entries)
         return cls(order=order, starts=starts, columns=columns, indptr=indptr, indices=(keys % n).astype(np.int32),
-                   scatter=at[:flat.size], L_values=np.bincount(at[flat.size:], weights=Lc.data, minlength=keys.size))
+                   scatter=at[:flat.size].astype(itype),
+                   L_values=np.bincount(at[flat.size:], weights=Lc.data, minlength=keys.size))
 
     def gram_values(self, lin, pc):
         """``(J Z)^T (J Z)``: its values on the pattern ``indptr``, ``indices``, from the linearisation ``lin`` and the coarse rest shapes ``pc``."""
@@ -336,11 +349,15 @@ class CGOperator(typing.NamedTuple):
     start : callable or None
         The first iterate as a function of the right-hand side (a deflated CG's coarse
         solution, :meth:`ReducedHessian.operator`); None starts from zero.
+    flexible : bool
+        Whether CG should take its flexible form (:func:`pcg`): the deflated preconditioner
+        with a coarse solve that is not exact.
     """
 
     apply_H: typing.Callable
     apply_P: typing.Callable
     start: typing.Callable | None = None
+    flexible: bool = False
 
 
 class ReducedHessian:
@@ -376,9 +393,22 @@ class ReducedHessian:
     #: study's paths (symmetric hinges, the box) depend on the grid to round-off.
     coarse_min_cells = 4
     coarse_spacing_few = 1.5
-    #: ... widened so that the grid has at most about this many coarse cells per layer: the
-    #: coarse matrix is factorised every step, and its factorisation grows faster than its size.
+    #: ... widened so that the grid has at most about this many coarse cells per layer where the
+    #: coarse matrix is factorised (every step; its factorisation grows faster than its size),
+    #: not where smoothed aggregation solves it (:attr:`coarse_solver`).
     coarse_cells = 10_000
+    #: How the coarse matrix is solved (:data:`COARSE_SOLVERS`): ``"factor"`` (the default), a
+    #: sparse factorisation at every step, which bounds the grid to :attr:`coarse_cells` cells
+    #: per layer, so that on larger parts it is wider and leaves more to CG (the 10^6-cell
+    #: corrugation: 10 pixels apart, 3.4 h, against 5 at 10^5); ``"amg"``,
+    #: :attr:`coarse_cycles` smoothed-aggregation V-cycles (:class:`gdfe.solver.amg.CoarseAMG`,
+    #: needs pyamg), whose cost grows with the grid's size and no faster, so the grid keeps its
+    #: spacing at every size. On the 10^6-cell corrugation ``"amg"`` took 20 % fewer CG
+    #: iterations but about the same time, and 420 MiB more (docs/solver.md): not the default.
+    coarse_solver = "factor"
+    #: V-cycles of one coarse solve with ``"amg"`` (a stationary iteration from zero: a fixed,
+    #: symmetric operator, so that CG's preconditioner does not change from one iteration to the next).
+    coarse_cycles = 3
     #: How ``method="newton-cg"`` combines the n x n and coarse corrections
     #: (:data:`TWO_LEVELS`, see :meth:`operator`).
     two_level = "deflated"
@@ -409,7 +439,16 @@ class ReducedHessian:
         c = int(np.ceil(self.coarse_spacing * design.h / min(dx, dy)))
         if c < self.coarse_min_cells:
             c = max(2, int(np.ceil(self.coarse_spacing_few * design.h / min(dx, dy))))
-        c = max(c, int(np.ceil(np.sqrt(design.n_cells / layers / self.coarse_cells))))
+        wide = max(c, int(np.ceil(np.sqrt(design.n_cells / layers / self.coarse_cells))))
+        solver = check_choice("coarse_solver", self.coarse_solver, COARSE_SOLVERS)
+        if solver == "amg":
+            from gdfe.solver.amg import available
+
+            if not available():
+                raise GdfeError("coarse_solver: expected 'factor' here, got 'amg': it needs pyamg "
+                                "(pip install -e \".[fem]\")")
+        else:
+            c = wide
         ijk = lattice(design.mesh)
         i, j, k = ijk.T
         I0, ti = np.divmod(i, c)
@@ -434,8 +473,7 @@ class ReducedHessian:
         Zf = Z[steps.free]
         Lc3 = sp.kron(Zf.T @ steps.L_ff @ Zf, sp.eye(3), format="csc")
         return CoarseSpace(Z=Z, Lc3=Lc3, Zt=Z.T.tocsr(), corners=column[keys].astype(np.int32), spacing=c,
-                           coarse_cell=keys[:, 0],
-                           ijk=ijk.astype(np.int32))
+                           coarse_cell=keys[:, 0], ijk=ijk.astype(np.int32), solver=solver)
 
     def _corner_weights(self, s, e):
         """``W[i, k, q]``, cells ``s:e``: the weight of cell ``i``'s corner ``q`` (:attr:`CoarseSpace.corners`) at its vertex ``k``."""
@@ -525,10 +563,23 @@ class ReducedHessian:
             Hc = sp.csc_matrix(Hc + cs.Z3.T @ extra @ cs.Z3)
         return Hc
 
-    def coarse_factor(self, lin, rest, mu, extra=None):
-        """:meth:`coarse_matrix` factorised; None when it is singular."""
+    def coarse_factor(self, lin, rest, mu, extra=None, V=None):
+        """:meth:`coarse_matrix` factorised, or its smoothed-aggregation solver (:attr:`coarse_solver`); None when it is singular.
+
+        ``V`` ``(n, 3)`` [mm], the iterate, gives smoothed aggregation its near-null space (the
+        rigid motions of the shape at the coarse vertices); default the flat print.
+        """
+        Hc = self.coarse_matrix(lin, rest, mu, extra)
+        if self.coarse.solver == "amg":
+            from gdfe.solver.amg import CoarseAMG
+
+            V = self.steps.design.mesh.points if V is None else V
+            try:
+                return CoarseAMG(Hc, self.coarse.points(V), cycles=self.coarse_cycles)
+            except np.linalg.LinAlgError:  # its coarsest level is not positive definite
+                return None
         try:
-            return factorise(self.coarse_matrix(lin, rest, mu, extra))
+            return factorise(Hc)
         except RuntimeError:  # SuperLU: exactly singular
             return None
 
@@ -547,7 +598,10 @@ class ReducedHessian:
             preconditioner and A-DEF2 from that start are equal) for one Hessian product and
             one coarse solve per CG iteration fewer. It needs the coarse matrix of this
             iterate: with one made at an earlier iterate (:data:`COARSE_REUSE`) CG stalled near
-            the 10^4-cell twist's solution, so :func:`cg_directions` reuses none with it.
+            the 10^4-cell twist's solution, so :func:`cg_directions` reuses none with it. With
+            the coarse matrix solved by smoothed aggregation (:attr:`coarse_solver`) the
+            equivalence holds only approximately, and CG takes its flexible form
+            (:attr:`CGOperator.flexible`).
         ``"multiplicative"``
             Symmetrically, coarse - fine - coarse (the balancing Neumann-Neumann
             preconditioner ``Q + (I - Q H) M (I - H Q)``), which halves the CG iterations
@@ -597,7 +651,9 @@ class ReducedHessian:
             def apply_P(r):
                 z = fine(r)
                 return z + coarse(r - apply_H(z))
-            return CGOperator(apply_H, apply_P, start=coarse)
+            # with an approximate coarse solve the residuals keep a coarse part and A-DEF2 is no longer
+            # equivalent to the balancing preconditioner: CG takes its flexible form
+            return CGOperator(apply_H, apply_P, start=coarse, flexible=cs.solver != "factor")
 
         def apply_P(r):
             if two_level == "additive":
@@ -675,7 +731,7 @@ def _dot(a, b):
     return float((a * b).sum())
 
 
-def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None):
+def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None, flexible=False):
     """Preconditioned CG; stops at negative curvature.
 
     ``rhs`` and what ``apply_H`` and ``apply_P`` return are arrays of one module (NumPy or CuPy).
@@ -687,6 +743,12 @@ def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None):
     a deflated CG (:meth:`ReducedHessian.operator`); the right-hand side's norm is then
     ``sqrt(rhs^T x0 + r0^T P r0)`` (``r0 = rhs - H x0``), the balancing preconditioner's
     ``rhs^T P rhs`` that the same CG started from zero measures.
+
+    ``flexible`` takes Notay's flexible CG (*SIAM J. Sci. Comput.* 22, 2000): the direction's
+    coefficient ``z_k^T (r_k - r_k-1) / z_k-1^T r_k-1`` (Polak-Ribiere) instead of
+    ``z_k^T r_k / z_k-1^T r_k-1``, the same in exact arithmetic with a symmetric positive
+    definite preconditioner, and robust where the preconditioner is not quite one (a
+    deflated preconditioner whose coarse solve is approximate).
 
     Returns
     -------
@@ -714,15 +776,18 @@ def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None):
         Hp = apply_H(p)
         pHp = _dot(p, Hp)
         if not pHp > 0:
+            log.debug("CG: negative curvature at iteration %d (p.Hp = %.3e)", k, pHp)
             return x, k
         a = rz / pHp
         x += a * p
+        r_old = r.copy() if flexible else None
         r -= a * Hp
         z = apply_P(r)
         rz_new = _dot(r, z)
         if not rz_new > 0 or float(np.sqrt(rz_new)) <= stop:
             return x, k
-        p = z + (rz_new / rz) * p
+        beta = (rz_new - _dot(r_old, z)) / rz if flexible else rz_new / rz
+        p = z + beta * p
         rz = rz_new
     return x, max_iter
 
@@ -856,16 +921,17 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200, forcing="e
             may_reuse = False
             if fc is None:
                 kept.clear()  # the last factor is not held while the next is made
-                fc = hessian.coarse_factor(lin, rest, mu, extra)
+                fc = hessian.coarse_factor(lin, rest, mu, extra, V=V)
                 if fc is None:
                     return None, 0
                 if reusable:
                     kept.update(factor=fc, mu=mu)
             ops = hessian.operator(lin, rest, mu, extra, coarse_factor=fc, J=J)
-            x, k = pcg(ops.apply_H, ops.apply_P, -grad, rtol, cg_max, start=ops.start)
+            x, k = pcg(ops.apply_H, ops.apply_P, -grad, rtol, cg_max, start=ops.start, flexible=ops.flexible)
             log.debug("CG: %d iterations to %.1e", k, history["eta"] if callable(rtol) else rtol)
             return x, k
         return step
+    directions.wants_shape = True  # a coarse matrix solved by smoothed aggregation takes its near-null space from the iterate
     return directions
 
 
@@ -1160,10 +1226,13 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
                 full = taken == 1.0 or (contact is not None and taken == trials[0])
                 floor = min(MU_MIN, MU_RESIDUAL * res) if vanishing_damping else MU_MIN
                 shrink = 4.0
+                # the quadratic model's reduction along the step taken, -g.s a (1 - a / 2) (CG's iterates
+                # satisfy s.H s = -g.s), against the energy's
+                predicted = -float(np.einsum("ij,ij->", grad, step)) * taken * (1.0 - 0.5 * taken)
+                agreement = (energies[-1] - E) / predicted if predicted > 0.0 else np.nan
+                log.debug("newton %d: step %.3e h (alpha %g), model agreement %.3f", it, moved, taken, agreement)
                 if vanishing_damping and taken == 1.0 and contact is None:
-                    # the quadratic model's reduction -g.s / 2 (CG's iterates satisfy s.H s = -g.s)
-                    # against the energy's: where they agree the damping falls faster
-                    predicted = -0.5 * float(np.einsum("ij,ij->", grad, step))
+                    # where they agree the damping falls faster
                     if predicted > 0.0 and (energies[-1] - E) >= MODEL_AGREEMENT * predicted:
                         shrink = MU_FAST
                 mu = max(mu / shrink, floor) if full else 2.0 * mu

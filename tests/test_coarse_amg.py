@@ -1,0 +1,160 @@
+"""The two-level preconditioner's coarse matrix solved by smoothed aggregation, and flexible CG.
+
+``ReducedHessian.coarse_solver = "amg"`` keeps the coarse grid's spacing where a factorised
+grid would be widened (more than ``ReducedHessian.coarse_cells`` coarse cells per layer) and
+solves its matrix with a few smoothed-aggregation V-cycles (:class:`gdfe.solver.amg.CoarseAMG`).
+The small plates here reach that regime by lowering ``coarse_cells`` and the hierarchy's
+coarsest level, so that its V-cycles are not an exact solve.
+"""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import gdfe
+from gdfe.measure import rigid_align
+from gdfe.solver import Solver
+from gdfe.solver import amg
+from gdfe.solver import newton as nw
+from gdfe.solver.newton import ReducedHessian
+
+pytest.importorskip("pyamg")
+
+
+def _plate(n=40, nz=2):
+    """An n x n plate of stripes (pixel 0.1 mm, h = 0.29 mm: the coarse grid 5 cells apart)."""
+    top = np.mod(np.arange(n), 6)[:, None] * np.ones((1, n), int) >= 2
+    return gdfe.from_masks(top, np.ones((n, n), bool), 0.1, 0.7, nz=nz)
+
+
+def _system(des):
+    sv = Solver(des)
+    V = sv.linearised_start(des.mesh.points.copy())
+    return sv, V, sv.orient(V), sv.rest(1.0), sv.reduced_hessian
+
+
+@pytest.mark.parametrize("solver, spacing", [("factor", 9), ("amg", 5)])
+def test_the_coarse_grid_is_widened_only_where_it_is_factorised(monkeypatch, solver, spacing):
+    """At most ~``coarse_cells`` (here 20) cells per layer where the grid is factorised: 9 cells apart on
+    this plate; smoothed aggregation keeps its spacing, 5 cells (0.4 h, at least 1.5 h on cells this coarse)."""
+    monkeypatch.setattr(ReducedHessian, "coarse_cells", 20)
+    monkeypatch.setattr(ReducedHessian, "coarse_solver", solver)
+    hs = Solver(_plate()).reduced_hessian
+    assert (hs.coarse.spacing, hs.coarse.solver) == (spacing, solver)
+
+
+def test_the_coarse_amg_solve_without_pyamg_is_refused(monkeypatch):
+    monkeypatch.setattr(ReducedHessian, "coarse_solver", "amg")
+    monkeypatch.setattr(amg, "available", lambda: False)
+    with pytest.raises(gdfe.GdfeError, match="coarse_solver: expected 'factor' here, got 'amg': it needs pyamg"):
+        Solver(_plate()).reduced_hessian.coarse
+
+
+def test_the_default_factorises_and_cg_is_not_flexible():
+    """By default nothing changes: the grid is factorised, CG takes its plain form."""
+    sv, V, o, rest, hs = _system(_plate())
+    assert hs.coarse.solver == "factor" and hs.coarse.spacing == 5
+    ops = hs.operator(hs.linearise(o.Q, o.S, rest), rest, 1e-6)
+    assert not ops.flexible
+
+
+def test_the_coarse_amg_solve_is_a_symmetric_approximate_inverse_that_improves_with_cycles(monkeypatch):
+    """``CoarseAMG.solve`` is a fixed symmetric operator (CG's requirement) and its error in the energy
+    norm falls with every V-cycle; its hierarchy has more than one level (not an exact solve)."""
+    monkeypatch.setattr(ReducedHessian, "coarse_solver", "amg")
+    sv, V, o, rest, hs = _system(_plate(n=60))
+    lin = hs.linearise(o.Q, o.S, rest, floor=0.5)
+    Hc = hs.coarse_matrix(lin, rest, 1e-6).toarray()
+    k = Hc.shape[0]
+    points = hs.coarse.points(V)
+    errors = []
+    rng = np.random.default_rng(0)
+    b = rng.standard_normal(k)
+    exact = np.linalg.solve(Hc, b)
+    for cycles in (1, 2, 3, 6):
+        solver = amg.CoarseAMG(sp.csr_matrix(Hc), points, cycles=cycles, max_coarse=60)
+        assert len(solver.ml.sizes) >= 2, solver.ml.sizes
+        e = solver.solve(b) - exact
+        errors.append(float(np.sqrt(e @ Hc @ e / (exact @ Hc @ exact))))
+    assert all(b2 < b1 for b1, b2 in zip(errors, errors[1:])), errors
+    assert errors[-1] < 0.8 * errors[0], errors  # a stationary iteration: slow, but convergent
+    # the operator of three cycles, column by column: symmetric, positive definite
+    solver = amg.CoarseAMG(sp.csr_matrix(Hc), points, cycles=3, max_coarse=60)
+    S = np.column_stack([solver.solve(e) for e in np.eye(k)])
+    np.testing.assert_allclose(S, S.T, rtol=0, atol=1e-10 * np.abs(S).max())
+    assert np.linalg.eigvalsh(0.5 * (S + S.T)).min() > 0
+
+
+def test_coarse_points_are_the_shape_where_the_grid_has_its_vertices():
+    """On the flat print, the coarse vertices' points lie on the film's lattice (z on a layer, x and y
+    the weighted mean of the vertices they interpolate to); a rigid motion of the shape moves them rigidly."""
+    sv, V, o, rest, hs = _system(_plate())
+    P = hs.coarse.points(sv.design.mesh.points)
+    assert P.shape == (hs.coarse.Z.shape[1], 3)
+    zs = np.unique(np.round(sv.design.mesh.points[:, 2], 12))
+    assert np.all(np.min(np.abs(P[:, 2:3] - zs[None, :]), axis=1) < 1e-12)
+    c, s = np.cos(0.3), np.sin(0.3)
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    moved = hs.coarse.points(V) @ R.T + [1.0, 2.0, 3.0]
+    np.testing.assert_allclose(hs.coarse.points(V @ R.T + [1.0, 2.0, 3.0]), moved, atol=1e-12 * np.abs(moved).max())
+
+
+def test_newton_cg_with_the_coarse_amg_solve_reaches_the_factorised_answer(monkeypatch):
+    """The same converged shape and energy with the coarse matrix factorised and solved by V-cycles
+    (a hierarchy of several levels); CG takes its flexible form with the V-cycles."""
+    des = _plate(n=60)
+    tol = 1e-7
+    ref = Solver(des)
+    V0 = ref.linearised_start(des.mesh.points.copy())
+    a = ref.solve(V0, method="newton-cg", tol=tol)
+    monkeypatch.setattr(ReducedHessian, "coarse_solver", "amg")
+    monkeypatch.setattr(amg, "AMG_MAX_COARSE", 60)
+    seen = []
+    plain = nw.pcg
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs.get("flexible"))
+        return plain(*args, **kwargs)
+    monkeypatch.setattr(nw, "pcg", spy)
+    sv = Solver(des)
+    b = sv.solve(V0, method="newton-cg", tol=tol)
+    assert sv.reduced_hessian.coarse.solver == "amg"
+    assert a.converged and b.converged, (a.iterations, b.iterations)
+    assert seen and all(seen)
+    assert b.energies[-1] == pytest.approx(a.energies[-1], rel=1e-9)
+    # the pinned vertex holds only the translations: compare the shapes after a rigid alignment
+    Q, t = rigid_align(b.points, a.points)
+    np.testing.assert_allclose(b.points @ Q.T + t, a.points, rtol=0, atol=2 * nw.STEP_TOL_FACTOR * tol * des.h)
+
+
+def test_flexible_cg_gives_the_iterates_of_cg_with_a_symmetric_preconditioner():
+    """With a symmetric positive definite preconditioner, the Polak-Ribiere coefficient equals the
+    Fletcher-Reeves one (the residuals are P-orthogonal): the same iterations and solution."""
+    rng = np.random.default_rng(1)
+    n = 300
+    B = rng.standard_normal((n, n)) / np.sqrt(n)
+    A = B @ B.T + np.diag(np.linspace(0.01, 10.0, n))
+    d = 1.0 / np.diag(A)
+    b = rng.standard_normal((n, 1))
+    out = [nw.pcg(lambda v: A @ v, lambda r: d[:, None] * r, b, 1e-10, 500, flexible=f) for f in (False, True)]
+    (x0, k0), (x1, k1) = out
+    assert abs(k0 - k1) <= 1
+    np.testing.assert_allclose(x1, x0, rtol=0, atol=1e-8 * np.abs(x0).max())
+    np.testing.assert_allclose(A @ x1, b, atol=1e-8 * np.abs(b).max())
+
+
+def test_flexible_cg_converges_where_the_preconditioner_changes_between_iterations():
+    """A preconditioner that is not a fixed operator (a randomly perturbed Jacobi): flexible CG still
+    reaches the tolerance."""
+    rng = np.random.default_rng(2)
+    n = 300
+    B = rng.standard_normal((n, n)) / np.sqrt(n)
+    A = B @ B.T + np.diag(np.linspace(0.01, 10.0, n))
+    d = 1.0 / np.diag(A)
+    b = rng.standard_normal((n, 1))
+
+    def varying(r):
+        return (d * (1.0 + 0.3 * rng.uniform(-1.0, 1.0, n)))[:, None] * r
+    x, k = nw.pcg(lambda v: A @ v, varying, b, 1e-8, 1000, flexible=True)
+    assert k < 1000
+    assert np.linalg.norm(A @ x - b) <= 1e-6 * np.linalg.norm(b)
