@@ -127,15 +127,19 @@ def test_newton_cg_with_the_coarse_amg_solve_reaches_the_factorised_answer(monke
     np.testing.assert_allclose(b.points @ Q.T + t, a.points, rtol=0, atol=2 * nw.STEP_TOL_FACTOR * tol * des.h)
 
 
+def _spd_system(seed, n=300):
+    """A random symmetric positive definite ``A`` (condition ~10^3), its Jacobi preconditioner's
+    diagonal ``d``, a right-hand side ``b`` ``(n, 1)`` and the generator."""
+    rng = np.random.default_rng(seed)
+    B = rng.standard_normal((n, n)) / np.sqrt(n)
+    A = B @ B.T + np.diag(np.linspace(0.01, 10.0, n))
+    return A, 1.0 / np.diag(A), rng.standard_normal((n, 1)), rng
+
+
 def test_flexible_cg_gives_the_iterates_of_cg_with_a_symmetric_preconditioner():
     """With a symmetric positive definite preconditioner, the Polak-Ribiere coefficient equals the
     Fletcher-Reeves one (the residuals are P-orthogonal): the same iterations and solution."""
-    rng = np.random.default_rng(1)
-    n = 300
-    B = rng.standard_normal((n, n)) / np.sqrt(n)
-    A = B @ B.T + np.diag(np.linspace(0.01, 10.0, n))
-    d = 1.0 / np.diag(A)
-    b = rng.standard_normal((n, 1))
+    A, d, b, _ = _spd_system(1)
     out = [nw.pcg(lambda v: A @ v, lambda r: d[:, None] * r, b, 1e-10, 500, flexible=f) for f in (False, True)]
     (x0, k0), (x1, k1) = out
     assert abs(k0 - k1) <= 1
@@ -146,15 +150,10 @@ def test_flexible_cg_gives_the_iterates_of_cg_with_a_symmetric_preconditioner():
 def test_flexible_cg_converges_where_the_preconditioner_changes_between_iterations():
     """A preconditioner that is not a fixed operator (a randomly perturbed Jacobi): flexible CG still
     reaches the tolerance."""
-    rng = np.random.default_rng(2)
-    n = 300
-    B = rng.standard_normal((n, n)) / np.sqrt(n)
-    A = B @ B.T + np.diag(np.linspace(0.01, 10.0, n))
-    d = 1.0 / np.diag(A)
-    b = rng.standard_normal((n, 1))
+    A, d, b, rng = _spd_system(2)
 
     def varying(r):
-        return (d * (1.0 + 0.3 * rng.uniform(-1.0, 1.0, n)))[:, None] * r
+        return (d * (1.0 + 0.3 * rng.uniform(-1.0, 1.0, d.size)))[:, None] * r
     x, k = nw.pcg(lambda v: A @ v, varying, b, 1e-8, 1000, flexible=True)
     assert k < 1000
     assert np.linalg.norm(A @ x - b) <= 1e-6 * np.linalg.norm(b)
