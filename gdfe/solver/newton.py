@@ -1027,6 +1027,62 @@ def deformation(step, V):
     return d - np.cross(omega, r)
 
 
+def _next_damping(mu, full, fast, res, vanishing_damping):
+    """The damping after an accepted step (:func:`solve_newton`).
+
+    A shortened step doubles it; a full one divides it by 4, or by :data:`MU_FAST` where
+    ``fast`` (the energy fell by at least :data:`MODEL_AGREEMENT` of what the quadratic model
+    predicted), down to its floor: :data:`MU_MIN`, or with ``vanishing_damping``
+    ``min(MU_MIN, MU_RESIDUAL * res)``, ``res`` the plain step's residual (units of h).
+    """
+    if not full:
+        return 2.0 * mu
+    floor = min(MU_MIN, MU_RESIDUAL * res) if vanishing_damping else MU_MIN
+    return max(mu / (MU_FAST if fast else 4.0), floor)
+
+
+class _DriftWatch:
+    """Drift between near-equal states in a Newton solve (:func:`solve_newton`, Notes).
+
+    Every :data:`DRIFT_WINDOW` iterations, from an anchor (iteration, energy, estimated distance
+    and shape): the energy fell by less than :data:`DRIFT_ENERGY` of itself while the estimate,
+    still above ``target`` (units of h), shrank by less than :data:`DRIFT_SHRINK` - the first
+    time a warning, and :attr:`stop` with ``on_drift="stop"``.
+    """
+
+    def __init__(self, E, V, on_drift, target, scale):
+        self.anchor = (0, E, np.inf, V.copy())
+        self.on_drift, self.target, self.scale = on_drift, target, scale
+        self.drift = None
+        self.stop = False
+
+    def update(self, it, E, error, V):
+        """After iteration ``it``: energy ``E``, estimated distance ``error`` (h), shape ``V`` ``(n, 3)`` [mm]."""
+        since, E0, error0, V0 = self.anchor
+        if it - since < DRIFT_WINDOW:
+            return
+        fell = (E0 - E) / max(abs(E), 1e-300)
+        if fell < DRIFT_ENERGY and error > self.target and not error < DRIFT_SHRINK * error0:
+            moved_mm = float(np.linalg.norm(deformation(V - V0, V0), axis=1).max())
+            if self.drift is None:
+                self.drift = {"since_iteration": since, "detected_at": it, "energy": E, "energy_change": fell,
+                              "moved_mm": moved_mm, "estimate_mm": error * self.scale}
+                log.warning("newton: drifting between near-equal states: over iterations %d-%d the energy fell "
+                            "by %.1e of itself while the shape moved %.3g mm (distance to the solution "
+                            "estimated %.3g mm); %s", since, it, fell, moved_mm, error * self.scale,
+                            "stopping (on_drift='stop')" if self.on_drift == "stop" else
+                            "going on (on_drift='stop' stops at this point)")
+            self.drift["moved_mm"] = max(self.drift["moved_mm"], moved_mm)
+            self.stop = self.on_drift == "stop"
+        self.anchor = (it, E, error, V.copy())
+
+    def report(self, it):
+        """``SolveStats.drift`` after ``it`` iterations: None, or the drift with its ``iterations``."""
+        if self.drift is not None:
+            self.drift["iterations"] = it - self.drift["since_iteration"]
+        return self.drift
+
+
 def _solve_free(steps, F):
     """``L_ff^{-1} F`` on the free vertices (zero at the pinned one), ``(n, 3)``."""
     out = np.zeros_like(F)
@@ -1145,8 +1201,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
     stalled = False
     error = prev = np.inf  # estimated distance to the solution; last full step, in units of h
     last_theta = 0.0  # the contraction of the last two full steps (0: none yet)
-    drift, stop_drift = None, False
-    anchor = (0, E, np.inf, V.copy())  # iteration, energy, estimate and shape a drift is measured from
+    watch = _DriftWatch(E, V, on_drift, STEP_TOL_FACTOR * tol, scale)
     # with a multigrid, the plain step's exact solve is made only where the test could pass
     # (a V-cycle estimates its residual otherwise): the Newton step needs only the gradient
     lazy = contact is None and steps.uses_multigrid
@@ -1159,7 +1214,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
             move = np.zeros_like(V)
             move[steps.free] = steps.approx_solve_free(-0.5 * g[steps.free])
             res = float(np.abs(move).max() / scale)
-            if (res <= 2.0 * tol and error <= STEP_TOL_FACTOR * tol) or it >= max_iter or stop_drift:
+            if (res <= 2.0 * tol and error <= STEP_TOL_FACTOR * tol) or it >= max_iter or watch.stop:
                 G = steps.assemble(Q, Vp, activation).V
                 res = float(np.abs(G - V).max() / scale)
         elif contact is None:
@@ -1170,7 +1225,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
             if state.active:
                 move = move - 0.5 * _solve_free(steps, gB)
             res = float(np.abs(move).max() / scale)
-        if (res <= tol and error <= STEP_TOL_FACTOR * tol) or it >= max_iter or stop_drift:
+        if (res <= tol and error <= STEP_TOL_FACTOR * tol) or it >= max_iter or watch.stop:
             break
         t0 = time.perf_counter()
         grad = 2.0 * (steps.apply_L(V) - plain.b)
@@ -1224,18 +1279,15 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
                     prev, last_theta = np.inf, 0.0
                 # a step cut short by collision detection, not by the energy, keeps the damping
                 full = taken == 1.0 or (contact is not None and taken == trials[0])
-                floor = min(MU_MIN, MU_RESIDUAL * res) if vanishing_damping else MU_MIN
-                shrink = 4.0
                 # the quadratic model's reduction along the step taken, -g.s a (1 - a / 2) (CG's iterates
-                # satisfy s.H s = -g.s), against the energy's
+                # satisfy s.H s = -g.s), against the energy's: where they agree the damping falls faster
                 predicted = -float(np.einsum("ij,ij->", grad, step)) * taken * (1.0 - 0.5 * taken)
-                agreement = (energies[-1] - E) / predicted if predicted > 0.0 else np.nan
-                log.debug("newton %d: step %.3e h (alpha %g), model agreement %.3f", it, moved, taken, agreement)
-                if vanishing_damping and taken == 1.0 and contact is None:
-                    # where they agree the damping falls faster
-                    if predicted > 0.0 and (energies[-1] - E) >= MODEL_AGREEMENT * predicted:
-                        shrink = MU_FAST
-                mu = max(mu / shrink, floor) if full else 2.0 * mu
+                fell = energies[-1] - E
+                log.debug("newton %d: step %.3e h (alpha %g), model agreement %.3f", it, moved, taken,
+                          fell / predicted if predicted > 0.0 else np.nan)
+                fast = (vanishing_damping and taken == 1.0 and contact is None and predicted > 0.0
+                        and fell >= MODEL_AGREEMENT * predicted)
+                mu = _next_damping(mu, full, fast, res, vanishing_damping)
                 break
             mu *= 8.0
         else:  # no descent even with heavy damping: take the plain step
@@ -1268,24 +1320,9 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
         energies.append(E)
         if monitor is not None and contact is None:
             monitor(it, V)
-        if it - anchor[0] >= DRIFT_WINDOW:
-            fell = (anchor[1] - E) / max(abs(E), 1e-300)
-            if fell < DRIFT_ENERGY and error > STEP_TOL_FACTOR * tol and not error < DRIFT_SHRINK * anchor[2]:
-                moved_mm = float(np.linalg.norm(deformation(V - anchor[3], anchor[3]), axis=1).max())
-                if drift is None:
-                    drift = {"since_iteration": anchor[0], "detected_at": it, "energy": E,
-                             "energy_change": fell, "moved_mm": moved_mm, "estimate_mm": error * scale}
-                    log.warning("newton: drifting between near-equal states: over iterations %d-%d the energy fell "
-                                "by %.1e of itself while the shape moved %.3g mm (distance to the solution "
-                                "estimated %.3g mm); %s", anchor[0], it, fell, moved_mm, error * scale,
-                                "stopping (on_drift='stop')" if on_drift == "stop" else
-                                "going on (on_drift='stop' stops at this point)")
-                drift["moved_mm"] = max(drift["moved_mm"], moved_mm)
-                stop_drift = on_drift == "stop"
-            anchor = (it, E, error, V.copy())
-    if drift is not None:
-        drift["iterations"] = it - drift["since_iteration"]
-    done = res <= tol and error <= STEP_TOL_FACTOR * tol and not (stalled or stop_drift)
+        watch.update(it, E, error, V)
+    drift = watch.report(it)
+    done = res <= tol and error <= STEP_TOL_FACTOR * tol and not (stalled or watch.stop)
     if contact is None:
         return SolveStats(points=G, converged=done, iterations=it, residual=res,
                           energies=energies + [steps.orient(G, activation).energy], cg_iterations=cg,
