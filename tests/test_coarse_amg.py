@@ -58,31 +58,49 @@ def test_the_default_factorises_and_cg_is_not_flexible():
     assert not ops.flexible
 
 
-def test_the_coarse_amg_solve_is_a_symmetric_approximate_inverse_that_improves_with_cycles(monkeypatch):
-    """``CoarseAMG.solve`` is a fixed symmetric operator (CG's requirement) and its error in the energy
-    norm falls with every V-cycle; its hierarchy has more than one level (not an exact solve)."""
+def test_the_coarse_amg_solve_is_the_stationary_iteration_of_its_v_cycle(monkeypatch):
+    """``CoarseAMG.solve`` with ``k`` cycles is ``sum_{j<k} (I - S A)^j S``, ``S`` one V-cycle (column by
+    column against that polynomial); ``S`` is symmetric positive definite, so ``I - S A`` is
+    self-adjoint in the energy norm and every cycle shrinks the error by its spectral radius ``rho``:
+    ``|e_k|_A <= rho |e_k-1|_A``, with ``rho < 1`` (a convergent iteration); the hierarchy has more than
+    one level, so that one cycle is not an exact solve (``rho > 0``)."""
     monkeypatch.setattr(ReducedHessian, "coarse_solver", "amg")
     sv, V, o, rest, hs = _system(_plate(n=60))
     lin = hs.linearise(o.Q, o.S, rest, floor=0.5)
     Hc = hs.coarse_matrix(lin, rest, 1e-6).toarray()
     k = Hc.shape[0]
     points = hs.coarse.points(V)
-    errors = []
-    rng = np.random.default_rng(0)
-    b = rng.standard_normal(k)
-    exact = np.linalg.solve(Hc, b)
-    for cycles in (1, 2, 3, 6):
+
+    def operator(cycles):
         solver = amg.CoarseAMG(sp.csr_matrix(Hc), points, cycles=cycles, max_coarse=60)
         assert len(solver.ml.sizes) >= 2, solver.ml.sizes
-        e = solver.solve(b) - exact
-        errors.append(float(np.sqrt(e @ Hc @ e / (exact @ Hc @ exact))))
-    assert all(b2 < b1 for b1, b2 in zip(errors, errors[1:])), errors
-    assert errors[-1] < 0.8 * errors[0], errors  # a stationary iteration: slow, but convergent
-    # the operator of three cycles, column by column: symmetric, positive definite
-    solver = amg.CoarseAMG(sp.csr_matrix(Hc), points, cycles=3, max_coarse=60)
-    S = np.column_stack([solver.solve(e) for e in np.eye(k)])
-    np.testing.assert_allclose(S, S.T, rtol=0, atol=1e-10 * np.abs(S).max())
+        return np.column_stack([solver.solve(e) for e in np.eye(k)])
+    S = operator(1)
+    scale = np.abs(S).max()
+    np.testing.assert_allclose(S, S.T, rtol=0, atol=1e-10 * scale)
     assert np.linalg.eigvalsh(0.5 * (S + S.T)).min() > 0
+    E = np.eye(k) - S @ Hc
+    np.testing.assert_allclose(operator(3), S + E @ S + E @ E @ S, rtol=0, atol=1e-9 * scale)
+    # the error propagation's spectral radius: eigenvalues of I - S^(1/2) A S^(1/2), similar to I - S A
+    w, U = np.linalg.eigh(0.5 * (S + S.T))
+    root = (U * np.sqrt(w)) @ U.T
+    rho = float(np.abs(np.linalg.eigvalsh(np.eye(k) - root @ Hc @ root)).max())
+    assert 0.0 < rho < 1.0, rho
+    exact = np.linalg.solve(Hc, np.random.default_rng(0).standard_normal(k))
+    b = Hc @ exact
+    cycles = (0, 1, 2, 3, 6)
+    errors = [float(np.sqrt(exact @ Hc @ exact))]  # from zero
+    for c in cycles[1:]:
+        e = amg.CoarseAMG(sp.csr_matrix(Hc), points, cycles=c, max_coarse=60).solve(b) - exact
+        errors.append(float(np.sqrt(e @ Hc @ e)))
+    for i in range(len(cycles) - 1):
+        assert errors[i + 1] <= rho ** (cycles[i + 1] - cycles[i]) * errors[i] * (1.0 + 1e-9), (rho, errors)
+
+
+def test_coarse_amg_cycles_must_be_a_positive_whole_number():
+    A = sp.identity(6, format="csr")
+    with pytest.raises(gdfe.GdfeError, match="cycles: expected"):
+        amg.CoarseAMG(A, np.zeros((2, 3)), cycles=0)
 
 
 def test_coarse_points_are_the_shape_where_the_grid_has_its_vertices():

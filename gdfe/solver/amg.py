@@ -31,6 +31,7 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
+from gdfe._validation import check_int
 from gdfe.solver import device as _device
 
 __all__ = ["AMG_MAX_COARSE", "AMG_REBUILD_CG", "available", "BlockPattern", "hessian_blocks", "rigid_modes",
@@ -296,11 +297,11 @@ class CoarseAMG:
     """
 
     def __init__(self, A, points, cycles=3, max_coarse=None):
+        self.cycles = check_int("cycles", cycles)
         A = sp.csr_matrix(A)
         self.A = A
         max_coarse = AMG_MAX_COARSE if max_coarse is None else int(max_coarse)
         self.ml = HessianAMG(A.tobsr(blocksize=(3, 3)), rigid_modes(points), max_coarse=max_coarse)
-        self.cycles = int(cycles)
         log.debug("coarse AMG: levels %s, operator complexity %.2f, %.2f s", self.ml.sizes, self.ml.complexity,
                   self.ml.setup_s)
 

@@ -23,7 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from gdfe import _memory
-from gdfe._validation import GdfeError, check_choice
+from gdfe._validation import GdfeError, check_choice, check_int
 from gdfe.solver.energy import SolveStats
 from gdfe.solver.linalg import factorise
 from gdfe.solver.multigrid import lattice
@@ -250,8 +250,12 @@ class CoarseSpace:
 
     def points(self, V):
         """The shape ``V`` ``(n, 3)`` [mm] at the coarse vertices: each one's weighted mean of the vertices it interpolates to, ``(k, 3)``."""
-        weight = np.asarray(self.Zt.sum(axis=1)).ravel()
-        return (self.Zt @ V) / np.maximum(weight, 1e-300)[:, None]
+        return (self.Zt @ V) * self._inverse_weight[:, None]
+
+    @functools.cached_property
+    def _inverse_weight(self):
+        """One over the sum of every coarse vertex's interpolation weights (the rows of ``Zt``)."""
+        return 1.0 / np.maximum(np.asarray(self.Zt.sum(axis=1)).ravel(), 1e-300)
 
     @functools.cached_property
     def Z3(self):
@@ -442,6 +446,7 @@ class ReducedHessian:
         wide = max(c, int(np.ceil(np.sqrt(design.n_cells / layers / self.coarse_cells))))
         solver = check_choice("coarse_solver", self.coarse_solver, COARSE_SOLVERS)
         if solver == "amg":
+            check_int("coarse_cycles", self.coarse_cycles)
             from gdfe.solver.amg import available
 
             if not available():
