@@ -64,7 +64,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gdfe._validation import GdfeError
+from gdfe._validation import GdfeError, check_choice
 from gdfe.calibration import Calibration
 from gdfe.paper import FIG6_D, FIG6_LENGTHS, H
 from studies._common import error_against_finest, median_time
@@ -341,8 +341,11 @@ def _sheet_case(args):
     import gdfe
     from gdfe.solver import AUTO_NEWTON_CELLS, Solver, auto_method, factor_backend
     from gdfe.solver.energy import rotations
+    from gdfe.solver.newton import ReducedHessian
 
-    kind, n_cells, repeats, mask_dir, hessian_max = args
+    kind, n_cells, repeats, mask_dir, hessian_max, coarse_solver = args
+    # how this process's Newton-CG solves its coarse matrix (a fresh process: nothing else reads it)
+    ReducedHessian.coarse_solver = coarse_solver
 
     def rss_kib():  # maximum resident set size so far, KiB on Linux
         return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
@@ -375,6 +378,7 @@ def _sheet_case(args):
            "init": "multilevel" if "start" in tm else "linear", "start_s": tm.get("start", 0.0),
            "penetration_check_s": tm.get("penetration_check", 0.0),
            "energy": res.energy, "assembly_solver": "multigrid" if "multigrid" in tm else factor_backend(),
+           "coarse_solver": coarse_solver,
            "split_s": {k: v / it for k, v in tm.items() if k not in once},
            "factorise_s": tm.get("factorise", 0.0) + tm.get("multigrid", 0.0)}
     # lower bound: one 3-column solve with the prefactorised n x n matrix plus one batched polar
@@ -433,7 +437,8 @@ def _sheets(cfg, mask_dir, progress):
     for kind, n in _progress(jobs, "sheets", progress):
         reps = cfg["sheet_repeats"] if n < cfg["big"] else cfg["big_repeats"]
         try:
-            rows.append(_run_child(_sheet_case, (kind, int(n), reps, str(mask_dir), cfg["hessian_max"])))
+            rows.append(_run_child(_sheet_case, (kind, int(n), reps, str(mask_dir), cfg["hessian_max"],
+                                                 cfg["coarse_solver"])))
         except MemoryError as exc:  # pragma: no cover - depends on the machine
             rows.append({"design": kind, "cells": int(n), "skipped": f"out of memory: {exc}"})
     return rows
@@ -658,7 +663,8 @@ def _time_at_error(levels, err):
 
 
 # -- the whole benchmark ----------------------------------------------------------------------
-def run(quick=False, sizes=None, fem=None, out=None, progress=None, freeform_sizes=None, hinges=True):
+def run(quick=False, sizes=None, fem=None, out=None, progress=None, freeform_sizes=None, hinges=True,
+        coarse_solver=None):
     """Run the benchmark; return its results (a JSON-ready dict).
 
     Parameters
@@ -679,10 +685,17 @@ def run(quick=False, sizes=None, fem=None, out=None, progress=None, freeform_siz
         and the mask PNGs.
     progress : bool, optional
         Progress bars (default: when stderr is a terminal).
+    coarse_solver : {"factor", "amg"}, optional
+        How the sheets' Newton-CG solves its coarse matrix
+        (:attr:`gdfe.solver.newton.ReducedHessian.coarse_solver`; default its default).
     """
     import sys
 
+    from gdfe.solver.newton import COARSE_SOLVERS, ReducedHessian
+
     cfg = dict(SETTINGS["quick" if quick else "full"])
+    cfg["coarse_solver"] = check_choice("coarse_solver", ReducedHessian.coarse_solver if coarse_solver is None
+                                        else coarse_solver, COARSE_SOLVERS)
     if sizes is not None:
         sizes = [int(s) for s in sizes]
         if not sizes or min(sizes) < 4:
@@ -903,8 +916,10 @@ def format_table(res):
             lines.append(f"  {r['L_mm']:5.2g} {r['cells']:6d} {r['method']:>9} {str(r['converged']):>5} "
                          f"{r['iterations']:6d} {r['seconds']:8.3f} {r['fold_angle_rad']:9.4f}")
         lines.append("")
+    coarse = sorted({r["coarse_solver"] for r in res["sheets"] if "coarse_solver" in r})
     lines += ["Mask sheets (corrugation: pixel 0.1 mm, R = 0.7; fig08: the 8 mm Figure 8 plate at the pixel that "
-              "gives the cell count, R = 0.6947; nz = 1); peak = max RSS of a child process"]
+              "gives the cell count, R = 0.6947; nz = 1); peak = max RSS of a child process"
+              + (f"; Newton-CG's coarse matrix: {', '.join(coarse)}" if coarse else "")]
     lines.append(f"  {'design':>12} {'cells':>7} {'pixel':>6} {'conv':>5} {'iter':>4} {'seconds':>8} {'start':>6} "
                  f"{'pen.':>5} {'peak MiB':>8} {'s/iter':>7} | {'solve':>7} {'svd':>6} {'polar':>6} {'bound':>6} "
                  f"{'t/bd':>6} {'t/bd_p':>6} {'LG/bd':>5}")

@@ -32,6 +32,7 @@ def test_quick_bench_reports_every_section_and_verdict(capsys, tmp_path):
         assert row["tol"] > 0 and row["error_estimate_mm"] is not None
         assert lb["local_global_ratio"] > 0
         assert "superlu" in row["factorisation"]["n"]
+        assert row["coarse_solver"] == "factor"
     assert "skipped" in res["fem_comparison"]
     v = res["verdicts"]
     assert set(v) == {"hinges", "fem", "sheet", "sheet_1e6", "lower_bound", "growth", "gpu"}
@@ -45,6 +46,19 @@ def test_quick_bench_reports_every_section_and_verdict(capsys, tmp_path):
     assert len(list((tmp_path / "masks").glob("*.png"))) == 6
     text = format_table(res)
     assert f"{res['machine']['cores']} cores" in text and "Goals" in text and "lower bound" in text
+
+
+def test_bench_runs_the_sheets_with_the_coarse_solver_asked_for(capsys):
+    """``--coarse-solver amg`` reaches the sheets' own processes: recorded per sheet and in the table."""
+    pytest.importorskip("pyamg")
+    assert main(["bench", "--quick", "--no-hinges", "--freeform-sizes", "none", "--sizes", "256",
+                 "--coarse-solver", "amg", "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert [(r["coarse_solver"], r["method"], r["converged"]) for r in res["sheets"]] == [("amg", "newton-cg", True)]
+    assert "Newton-CG's coarse matrix: amg" in format_table(res)
+    with pytest.raises(SystemExit):
+        main(["bench", "--quick", "--coarse-solver", "lu"])
+    assert "invalid choice: 'lu'" in capsys.readouterr().err
 
 
 def test_bench_rejects_bad_sizes(capsys):

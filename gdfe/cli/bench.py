@@ -4,6 +4,7 @@ from __future__ import annotations
 
 
 from gdfe.cli._common import emit, json_arg, noting, out_arg, output_folder
+from gdfe.solver.newton import COARSE_SOLVERS
 
 __all__ = ["register", "run"]
 
@@ -41,6 +42,9 @@ def register(subparsers):
     p.add_argument("--no-hinges", dest="hinges", action="store_false", help="skip the Figure 6 hinges")
     p.add_argument("--no-fem", dest="fem", action="store_false", default=None, help="skip the FEM comparison")
     p.add_argument("--fem", dest="fem", action="store_true", help="run the FEM comparison even with --quick")
+    p.add_argument("--coarse-solver", choices=COARSE_SOLVERS, default=None,
+                   help="how the sheets' Newton-CG solves its coarse matrix: factorised (default) or by "
+                        "smoothed-aggregation V-cycles (needs pyamg)")
     p.add_argument("--large", action="store_true",
                    help="run even when the estimate of a sheet size says it is long or takes most of the memory")
     p.set_defaults(func=run)
@@ -81,7 +85,7 @@ def run(args):
     folder = output_folder(args.out, args)
     with noting(folder), (folder or nullcontext()):
         res = bench.run(quick=args.quick, sizes=args.sizes, fem=args.fem, out=args.out,
-                        freeform_sizes=args.freeform_sizes, hinges=args.hinges)
+                        freeform_sizes=args.freeform_sizes, hinges=args.hinges, coarse_solver=args.coarse_solver)
     emit(res, args.json, bench.format_table(res), command="bench")
     accelerated = [r for r in res["hinges"] if r["method"] in ("newton", "newton-cg")]
     sheets = [r for r in res["sheets"] if "skipped" not in r]
