@@ -97,10 +97,13 @@ def test_the_coarse_amg_solve_is_the_stationary_iteration_of_its_v_cycle(monkeyp
         assert errors[i + 1] <= rho ** (cycles[i + 1] - cycles[i]) * errors[i] * (1.0 + 1e-9), (rho, errors)
 
 
-def test_coarse_amg_cycles_must_be_a_positive_whole_number():
+def test_coarse_amg_refuses_what_it_cannot_solve():
     A = sp.identity(6, format="csr")
-    with pytest.raises(gdfe.GdfeError, match="cycles: expected"):
+    with pytest.raises(gdfe.GdfeError, match="cycles: expected an integer >= 1, got 0"):
         amg.CoarseAMG(A, np.zeros((2, 3)), cycles=0)
+    with pytest.raises(gdfe.GdfeError, match=r"A, points: expected a \(3k, 3k\) matrix and \(k, 3\) points, "
+                                             r"got \(6, 6\) and \(3, 3\)"):
+        amg.CoarseAMG(A, np.zeros((3, 3)))
 
 
 def test_coarse_points_are_the_shape_where_the_grid_has_its_vertices():

@@ -31,7 +31,7 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
-from gdfe._validation import check_int
+from gdfe._validation import GdfeError, check_int
 from gdfe.solver import device as _device
 
 __all__ = ["AMG_MAX_COARSE", "AMG_REBUILD_CG", "available", "BlockPattern", "hessian_blocks", "rigid_modes",
@@ -299,6 +299,9 @@ class CoarseAMG:
     def __init__(self, A, points, cycles=3, max_coarse=None):
         self.cycles = check_int("cycles", cycles)
         A = sp.csr_matrix(A)
+        points = np.asarray(points, float)
+        if A.shape[0] != A.shape[1] or points.ndim != 2 or points.shape[1] != 3 or A.shape[0] != 3 * points.shape[0]:
+            raise GdfeError(f"A, points: expected a (3k, 3k) matrix and (k, 3) points, got {A.shape} and {points.shape}")
         self.A = A
         max_coarse = AMG_MAX_COARSE if max_coarse is None else int(max_coarse)
         self.ml = HessianAMG(A.tobsr(blocksize=(3, 3)), rigid_modes(points), max_coarse=max_coarse)
