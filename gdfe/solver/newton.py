@@ -30,7 +30,7 @@ from gdfe.solver.multigrid import lattice
 
 __all__ = ["MU_MIN", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "CONTACT_ALPHAS", "CONTACT_EXACT_RES", "DRIFT_WINDOW",
            "DRIFT_ENERGY", "DRIFT_SHRINK", "ON_DRIFT", "RELEASE_POINTS", "CG_RTOL_MIN", "CG_RTOL_MAX", "CG_TARGET_MARGIN",
-           "EW_GAMMA", "EW_ALPHA", "FORCINGS", "MU_RESIDUAL", "MODEL_AGREEMENT", "MU_FAST", "PRECONDITIONERS",
+           "EW_GAMMA", "EW_ALPHA", "FORCINGS", "MU_RESIDUAL", "MU_RESIDUAL_CONTACT", "MODEL_AGREEMENT", "MU_FAST", "PRECONDITIONERS",
            "AMG_REBUILD_DAMPING", "TWO_LEVELS", "COARSE_SOLVERS", "CGOperator", "forcing_term", "sqrt_forcing", "COARSE_REUSE", "COARSE_REUSE_DAMPING",
            "ReducedHessian", "Linearisation", "CoarseSpace", "CoarseCells", "pcg", "deformation", "solve_newton",
            "factorised_directions", "cg_directions"]
@@ -44,12 +44,20 @@ MU_MIN = 1e-6
 #: ``min(MU_MIN, MU_RESIDUAL * res)`` (``res`` the plain step's residual, units of h), so that
 #: the damping vanishes at the solution and Newton's convergence stays superlinear; a floor
 #: held at MU_MIN slowed the soft mode of the 10^5-cell Figure 8 twist to a linear rate of
-#: about 0.45 per step (docs/bench, the solver's convergence).
-MU_RESIDUAL = 1e-3
+#: about 0.45 per step (docs/bench, the solver's convergence); at 1e-3 its floor was still that
+#: mode's curvature near the end (the twist: 9 steps against 8).
+MU_RESIDUAL = 1e-6
+#: ... and with self-contact: with 1e-6 the contact study's 9 mm offset hinge (its ends meet
+#: off-centre, a state the activation's path decides) ended 1.7 mrad further on, and moved by 2 um
+#: and solved again it rose by 6.6e-5 of its energy instead of coming back (why is not known).
+MU_RESIDUAL_CONTACT = 1e-3
 #: ... and after a full step whose energy fell by at least MODEL_AGREEMENT of what the quadratic
-#: model predicted, the damping is divided by MU_FAST instead of 4.
+#: model predicted, the damping falls to that floor at once (``MU_FAST = inf``; a full step the
+#: model predicted less well divides it by 4). Divided by 16 instead, the damping that starts every
+#: solve at 1e-3 needed four steps to fall below the soft modes' curvature, and the 10^5-cell twist
+#: took 10 steps where it takes 8 (docs/solver.md, the damping's fall).
 MODEL_AGREEMENT = 0.75
-MU_FAST = 16.0
+MU_FAST = np.inf
 #: A Newton solve also needs its estimated distance to the solution below
 #: ``STEP_TOL_FACTOR * tol`` (units of h); see :func:`solve_newton`.
 STEP_TOL_FACTOR = 10.0
@@ -1032,17 +1040,19 @@ def deformation(step, V):
     return d - np.cross(omega, r)
 
 
-def _next_damping(mu, full, fast, res, vanishing_damping):
+def _next_damping(mu, full, fast, res, vanishing_damping, contact=False):
     """The damping after an accepted step (:func:`solve_newton`).
 
-    A shortened step doubles it; a full one divides it by 4, or by :data:`MU_FAST` where
-    ``fast`` (the energy fell by at least :data:`MODEL_AGREEMENT` of what the quadratic model
-    predicted), down to its floor: :data:`MU_MIN`, or with ``vanishing_damping``
-    ``min(MU_MIN, MU_RESIDUAL * res)``, ``res`` the plain step's residual (units of h).
+    A shortened step doubles it; a full one divides it by 4, or by :data:`MU_FAST` (to the
+    floor) where ``fast`` (the energy fell by at least :data:`MODEL_AGREEMENT` of what the
+    quadratic model predicted), down to its floor: :data:`MU_MIN`, or with ``vanishing_damping``
+    ``min(MU_MIN, MU_RESIDUAL * res)``, ``res`` the plain step's residual (units of h)
+    (:data:`MU_RESIDUAL_CONTACT` in place of ``MU_RESIDUAL`` with ``contact``).
     """
     if not full:
         return 2.0 * mu
-    floor = min(MU_MIN, MU_RESIDUAL * res) if vanishing_damping else MU_MIN
+    factor = MU_RESIDUAL_CONTACT if contact else MU_RESIDUAL
+    floor = min(MU_MIN, factor * res) if vanishing_damping else MU_MIN
     return max(mu / (MU_FAST if fast else 4.0), floor)
 
 
@@ -1138,9 +1148,10 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
         contact-free solve there once it passes through itself, see :func:`gdfe.simulate`).
     vanishing_damping : bool
         The damping's floor falls with the residual, ``min(MU_MIN, MU_RESIDUAL * res)``
+        (:data:`MU_RESIDUAL_CONTACT` with ``contact``)
         (Levenberg-Marquardt with a damping proportional to the residual: superlinear near
-        the solution), instead of staying at :data:`MU_MIN`, and falls faster after a step
-        the quadratic model predicted well (:data:`MODEL_AGREEMENT`, :data:`MU_FAST`). The
+        the solution), instead of staying at :data:`MU_MIN`, and without contact falls to that
+        floor at once after a step the quadratic model predicted well (:data:`MODEL_AGREEMENT`, :data:`MU_FAST`). The
         distance estimate is then the last step's length, never extrapolated by the
         contraction (see Notes): with steps near Newton's, the contraction of two steps
         says little of the next, and the extrapolated estimate fell 18x short of the
@@ -1292,7 +1303,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
                           fell / predicted if predicted > 0.0 else np.nan)
                 fast = (vanishing_damping and taken == 1.0 and contact is None and predicted > 0.0
                         and fell >= MODEL_AGREEMENT * predicted)
-                mu = _next_damping(mu, full, fast, res, vanishing_damping)
+                mu = _next_damping(mu, full, fast, res, vanishing_damping, contact=contact is not None)
                 break
             mu *= 8.0
         else:  # no descent even with heavy damping: take the plain step
