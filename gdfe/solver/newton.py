@@ -793,13 +793,13 @@ def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None, flexible=False):
             return x, k
         a = rz / pHp
         x += a * p
-        r_old = r.copy() if flexible else None
         r -= a * Hp
         z = apply_P(r)
         rz_new = _dot(r, z)
         if not rz_new > 0 or float(np.sqrt(rz_new)) <= stop:
             return x, k
-        beta = (rz_new - _dot(r_old, z)) / rz if flexible else rz_new / rz
+        # flexible: z_k^T (r_k - r_k-1) with r_k - r_k-1 = -a H p, no copy of the last residual
+        beta = -a * _dot(z, Hp) / rz if flexible else rz_new / rz
         p = z + beta * p
         rz = rz_new
     return x, max_iter
