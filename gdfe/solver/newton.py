@@ -30,7 +30,7 @@ from gdfe.solver.multigrid import lattice
 
 __all__ = ["MU_MIN", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "CONTACT_ALPHAS", "CONTACT_EXACT_RES", "DRIFT_WINDOW",
            "DRIFT_ENERGY", "DRIFT_SHRINK", "ON_DRIFT", "RELEASE_POINTS", "CG_RTOL_MIN", "CG_RTOL_MAX", "CG_TARGET_MARGIN",
-           "EW_GAMMA", "EW_ALPHA", "FORCINGS", "MU_RESIDUAL", "MU_RESIDUAL_CONTACT", "MODEL_AGREEMENT", "MU_FAST", "PRECONDITIONERS",
+           "EW_GAMMA", "EW_ALPHA", "FORCINGS", "MU_RESIDUAL", "MU_RESIDUAL_CONTACT", "MODEL_AGREEMENT", "PRECONDITIONERS",
            "AMG_REBUILD_DAMPING", "TWO_LEVELS", "COARSE_SOLVERS", "CGOperator", "forcing_term", "sqrt_forcing", "COARSE_REUSE", "COARSE_REUSE_DAMPING",
            "ReducedHessian", "Linearisation", "CoarseSpace", "CoarseCells", "pcg", "deformation", "solve_newton",
            "factorised_directions", "cg_directions"]
@@ -52,12 +52,11 @@ MU_RESIDUAL = 1e-6
 #: and solved again it rose by 6.6e-5 of its energy instead of coming back (why is not known).
 MU_RESIDUAL_CONTACT = 1e-3
 #: ... and after a full step whose energy fell by at least MODEL_AGREEMENT of what the quadratic
-#: model predicted, the damping falls to that floor at once (``MU_FAST = inf``; a full step the
-#: model predicted less well divides it by 4). Divided by 16 instead, the damping that starts every
+#: model predicted, the damping falls to that floor at once (a full step the model predicted less
+#: well divides it by 4). Divided by 16 instead, the damping that starts every
 #: solve at 1e-3 needed four steps to fall below the soft modes' curvature, and the 10^5-cell twist
 #: took 10 steps where it takes 8 (docs/solver.md, the damping's fall).
 MODEL_AGREEMENT = 0.75
-MU_FAST = np.inf
 #: A Newton solve also needs its estimated distance to the solution below
 #: ``STEP_TOL_FACTOR * tol`` (units of h); see :func:`solve_newton`.
 STEP_TOL_FACTOR = 10.0
@@ -1043,9 +1042,9 @@ def deformation(step, V):
 def _next_damping(mu, full, fast, res, vanishing_damping, contact=False):
     """The damping after an accepted step (:func:`solve_newton`).
 
-    A shortened step doubles it; a full one divides it by 4, or by :data:`MU_FAST` (to the
-    floor) where ``fast`` (the energy fell by at least :data:`MODEL_AGREEMENT` of what the
-    quadratic model predicted), down to its floor: :data:`MU_MIN`, or with ``vanishing_damping``
+    A shortened step doubles it; a full one divides it by 4, or where ``fast`` (the energy
+    fell by at least :data:`MODEL_AGREEMENT` of what the quadratic model predicted) drops it
+    at once, down to its floor: :data:`MU_MIN`, or with ``vanishing_damping``
     ``min(MU_MIN, MU_RESIDUAL * res)``, ``res`` the plain step's residual (units of h)
     (:data:`MU_RESIDUAL_CONTACT` in place of ``MU_RESIDUAL`` with ``contact``).
     """
@@ -1053,7 +1052,7 @@ def _next_damping(mu, full, fast, res, vanishing_damping, contact=False):
         return 2.0 * mu
     factor = MU_RESIDUAL_CONTACT if contact else MU_RESIDUAL
     floor = min(MU_MIN, factor * res) if vanishing_damping else MU_MIN
-    return max(mu / (MU_FAST if fast else 4.0), floor)
+    return floor if fast else max(mu / 4.0, floor)
 
 
 class _DriftWatch:
@@ -1151,7 +1150,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
         (:data:`MU_RESIDUAL_CONTACT` with ``contact``)
         (Levenberg-Marquardt with a damping proportional to the residual: superlinear near
         the solution), instead of staying at :data:`MU_MIN`, and without contact falls to that
-        floor at once after a step the quadratic model predicted well (:data:`MODEL_AGREEMENT`, :data:`MU_FAST`). The
+        floor at once after a step the quadratic model predicted well (:data:`MODEL_AGREEMENT`). The
         distance estimate is then the last step's length, never extrapolated by the
         contraction (see Notes): with steps near Newton's, the contraction of two steps
         says little of the next, and the extrapolated estimate fell 18x short of the
