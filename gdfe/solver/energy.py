@@ -29,6 +29,7 @@ from gdfe._validation import check_instance
 from gdfe.design import Design, Material
 from gdfe.solver.linalg import factorise
 from gdfe.solver.multigrid import MULTIGRID_CELLS, Multigrid, lattice
+from gdfe.solver.threads import in_order, ranges
 
 __all__ = ["D8", "rest_shapes", "system_matrix", "rotations", "expmap", "energy", "RestState",
            "Orientation", "Assembly", "SolveStats", "LocalGlobal"]
@@ -84,6 +85,21 @@ def _det3(A):
     return (A[:, 0, 0] * (A[:, 1, 1] * A[:, 2, 2] - A[:, 1, 2] * A[:, 2, 1])
             - A[:, 0, 1] * (A[:, 1, 0] * A[:, 2, 2] - A[:, 1, 2] * A[:, 2, 0])
             + A[:, 0, 2] * (A[:, 1, 0] * A[:, 2, 1] - A[:, 1, 1] * A[:, 2, 0]))
+
+
+def _centred(V, cells):
+    """Every cell's vertices ``V[cells]`` less their mean, ``(m, 8, 3)``."""
+    X = np.take(V, cells, axis=0)  # np.take: 3.6x faster than fancy indexing here
+    X -= X.mean(axis=1, keepdims=True)
+    return X
+
+
+def _misfits(V, cells, P, s, e, X, S, Q):
+    """The orientation step on cells ``s:e``, into ``X`` (the misfits ``x_k - Q p_k``), ``S`` and ``Q``."""
+    X[s:e] = _centred(V, cells[s:e])
+    np.matmul(X[s:e].transpose(0, 2, 1), P[s:e], out=S[s:e])  # 3.8x faster than the same einsum
+    Q[s:e] = rotations(S[s:e])[0]
+    X[s:e] -= np.matmul(P[s:e], Q[s:e].transpose(0, 2, 1))
 
 
 def rotations(S, tol=1e-12, max_iter=30):
@@ -444,18 +460,19 @@ class LocalGlobal:
         """Orientation step: the optimal rotations at ``V`` ``(n, 3)`` [mm] and the energy there."""
         t0 = time.perf_counter()
         P = self.rest(activation).P
-        X = np.take(V, self.cells, axis=0)  # np.take: 3.6x faster than fancy indexing here
-        X -= X.mean(axis=1, keepdims=True)
-        S = np.matmul(X.transpose(0, 2, 1), P)  # 3.8x faster than the same einsum
-        if self.xp is np:
-            Q, _ = rotations(S)
+        if self.xp is np:  # cell by cell: ranges of cells on the solver's threads (gdfe.solver.threads)
+            m = self.cells.shape[0]
+            X, S, Q = np.empty((m,) + P.shape[1:]), np.empty((m, 3, 3)), np.empty((m, 3, 3))
+            in_order(lambda part: _misfits(V, self.cells, P, *part, X, S, Q), ranges(m))
         else:  # one batched SVD on the GPU (gdfe.solver.device.polar)
             from gdfe.solver.device import polar, to_host
 
+            X = _centred(V, self.cells)
+            S = np.matmul(X.transpose(0, 2, 1), P)
             Q = to_host(polar(S, self.xp))
+            X -= np.matmul(P, Q.transpose(0, 2, 1))
         # sum of squares of the misfit itself, not |X|^2 + |P|^2 - 2 tr(Q^T S), which
-        # cancels to round-off when a cell reaches its rest shape
-        X -= np.matmul(P, Q.transpose(0, 2, 1))
+        # cancels to round-off when a cell reaches its rest shape; over all cells at once
         E = float(np.einsum("m,mki,mki->", self.w, X, X))  # no BLAS dot: see gdfe.solver.newton._dot
         self.timings["orientation"] += time.perf_counter() - t0
         return Orientation(Q, S, max(E, 0.0))

@@ -32,6 +32,7 @@ import scipy.sparse as sp
 
 from gdfe.mesh import _HEX_OFFSETS
 from gdfe.solver.linalg import factorise
+from gdfe.solver.threads import RowBlocks
 
 __all__ = ["MULTIGRID_CELLS", "MG_COARSEST", "MG_SMOOTHING", "MG_ASPECT", "lattice", "prolongation", "Multigrid"]
 
@@ -185,10 +186,15 @@ class Multigrid:
         return self.levels[0][0].shape[0] if self.levels else self.coarse_size
 
     @functools.cached_property
+    def _double(self):
+        """The levels with their matrices' products on the solver's threads (:class:`gdfe.solver.threads.RowBlocks`)."""
+        return [(RowBlocks(A), P, wd) for A, P, wd in self.levels]
+
+    @functools.cached_property
     def _single(self):
         """The levels in single precision (their index arrays shared), for :meth:`vcycle` with ``single``."""
         f = np.float32
-        return [(sp.csr_matrix((A.data.astype(f), A.indices, A.indptr), shape=A.shape),
+        return [(RowBlocks(sp.csr_matrix((A.data.astype(f), A.indices, A.indptr), shape=A.shape)),
                  sp.csr_matrix((P.data.astype(f), P.indices, P.indptr), shape=P.shape), wd.astype(f))
                 for A, P, wd in self.levels]
 
@@ -201,7 +207,7 @@ class Multigrid:
         """
         if single:
             return self._cycle(np.asarray(b, np.float32), 0, self._single).astype(np.float64)
-        return self._cycle(b, 0, self.levels)
+        return self._cycle(b, 0, self._double)
 
     def _cycle(self, b, level, levels):
         if level == len(levels):
@@ -225,7 +231,7 @@ class Multigrid:
         b = np.asarray(b, float)
         one = b.ndim == 1
         B = b[:, None] if one else b
-        A = self.levels[0][0] if self.levels else None
+        A = self._double[0][0] if self.levels else None
         if A is None:
             x = self.coarse.solve(np.asfortranarray(B))
             return x.ravel() if one else x

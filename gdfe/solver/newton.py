@@ -27,6 +27,7 @@ from gdfe._validation import GdfeError, check_choice, check_int
 from gdfe.solver.energy import SolveStats
 from gdfe.solver.linalg import factorise
 from gdfe.solver.multigrid import lattice
+from gdfe.solver.threads import in_order, ranges, side_by_side
 
 __all__ = ["MU_MIN", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "CONTACT_ALPHAS", "CONTACT_EXACT_RES", "DRIFT_WINDOW",
            "DRIFT_ENERGY", "DRIFT_SHRINK", "ON_DRIFT", "RELEASE_POINTS", "CG_RTOL_MIN", "CG_RTOL_MAX", "CG_TARGET_MARGIN",
@@ -125,8 +126,9 @@ def _cross(p):
 
 #: Cells per chunk when a 3m x 3n matrix is built from per-cell blocks (bounds the temporaries).
 _CHUNK = 65_536
-#: Cells per slab when the coarse matrix is summed (:meth:`CoarseCells.gram`; bounds its memory at 10^6 cells).
-_COARSE_CHUNK = 65_536
+#: Cells per slab when the coarse matrix is summed (:meth:`CoarseCells.gram_values`; bounds its memory at
+#: 10^6 cells, and the slabs share the solver's threads evenly at 10^5).
+_COARSE_CHUNK = 16_384
 
 
 def _block_rows(lin, p, pattern):
@@ -145,9 +147,12 @@ def _block_rows(lin, p, pattern):
     """
     m, r, _ = p.shape
     data = np.empty((m, 3, r, 3))
-    for s in range(0, m, _CHUNK):
-        e = min(m, s + _CHUNK)
-        _cell_blocks(lin.Q[s:e], lin.root[s:e], p[s:e], out=data[s:e])
+
+    def blocks(part):  # in chunks: bounded temporaries
+        for s in range(*part, _CHUNK):
+            e = min(part[1], s + _CHUNK)
+            _cell_blocks(lin.Q[s:e], lin.root[s:e], p[s:e], out=data[s:e])
+    in_order(blocks, ranges(m))
     indices, indptr, shape = pattern
     return sp.csr_matrix((data.ravel(), indices, indptr), shape=shape)
 
@@ -337,8 +342,11 @@ class CoarseCells:
         starts = self.starts
         # coarse cells in slabs of about _COARSE_CHUNK cells: the stacked blocks' memory stays bounded
         # (about 600 bytes per cell of a slab, with the temporaries of _cell_blocks)
+        # (slabs on the solver's threads, gdfe.solver.threads: at most one slab's memory per thread)
         edges = np.unique(np.concatenate([np.searchsorted(starts, np.arange(0, starts[-1], _COARSE_CHUNK)), [g]]))
-        for g0, g1 in zip(edges[:-1], edges[1:]):
+
+        def slab(bounds):
+            g0, g1 = bounds
             cells = self.order[starts[g0]:starts[g1]]
             D = _cell_blocks(lin.Q[cells], lin.root[cells], pc[cells]).reshape(-1, 3, 24)
             counts = np.diff(starts[g0:g1 + 1])
@@ -347,6 +355,7 @@ class CoarseCells:
             G[np.repeat(np.arange(g1 - g0), counts), slot] = D
             G = G.reshape(g1 - g0, -1, 24)
             np.matmul(G.transpose(0, 2, 1), G, out=blocks[g0:g1])
+        in_order(slab, zip(edges[:-1], edges[1:]))
         return np.bincount(self.scatter, weights=blocks.ravel(), minlength=self.indices.size)
 
 
@@ -645,7 +654,9 @@ class ReducedHessian:
         two_level = check_choice("two_level", self.two_level, TWO_LEVELS)
 
         def apply_H(v):
-            out = scale * apply_L(v) - 2.0 * (Jt @ (J @ v.ravel())).reshape(-1, 3)
+            # L v and J^T J v side by side on two threads (gdfe.solver.threads): the same arithmetic
+            Lv, JJv = side_by_side(lambda: apply_L(v), lambda: Jt @ (J @ v.ravel()), rows=steps.n)
+            out = scale * Lv - 2.0 * JJv.reshape(-1, 3)
             if extra is not None:
                 out += (extra @ v.ravel()).reshape(-1, 3)
             out[pin] = 0.0
@@ -721,7 +732,11 @@ class ReducedHessian:
         Ed = None if extra is None else to_device_sparse(sp.csr_matrix(extra), xp)
 
         def apply_H(v):
-            out = scale * apply_L(v) - 2.0 * (Jtd @ (Jd @ v.ravel())).reshape(-1, 3)
+            if xp is np:  # as operator's: L v and J^T J v side by side on the CPU's threads
+                Lv, JJv = side_by_side(lambda: apply_L(v), lambda: Jtd @ (Jd @ v.ravel()), rows=steps.n)
+            else:
+                Lv, JJv = apply_L(v), Jtd @ (Jd @ v.ravel())
+            out = scale * Lv - 2.0 * JJv.reshape(-1, 3)
             if Ed is not None:
                 out += (Ed @ v.ravel()).reshape(-1, 3)
             out[pin] = 0.0
@@ -923,21 +938,24 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200, forcing="e
         # balancing form with a reused factor took the 10^5 twist's fine solve from 21.0 s to 25.4 s)
         reusable = extra is None and hessian.two_level != "deflated"
         may_reuse = reusable and error <= COARSE_REUSE
-        J = hessian.jacobian(lin, rest)  # the same for every damping tried at this iterate
+        J = None  # the same for every damping tried at this iterate: made beside the first coarse factorisation
 
         def step(mu):
-            nonlocal may_reuse
+            nonlocal may_reuse, J
             # the damping enters the coarse matrix as the factor 1 + max(mu, MU_MIN) of its L part
             same = "mu" in kept and abs(max(mu, MU_MIN) - max(kept["mu"], MU_MIN)) <= COARSE_REUSE_DAMPING
             fc = kept["factor"] if may_reuse and same else None
             may_reuse = False
             if fc is None:
                 kept.clear()  # the last factor is not held while the next is made
-                fc = hessian.coarse_factor(lin, rest, mu, extra, V=V)
+                fc, J = side_by_side(lambda: hessian.coarse_factor(lin, rest, mu, extra, V=V),
+                                     lambda: hessian.jacobian(lin, rest) if J is None else J, rows=hessian.steps.n)
                 if fc is None:
                     return None, 0
                 if reusable:
                     kept.update(factor=fc, mu=mu)
+            if J is None:
+                J = hessian.jacobian(lin, rest)
             ops = hessian.operator(lin, rest, mu, extra, coarse_factor=fc, J=J)
             x, k = pcg(ops.apply_H, ops.apply_P, -grad, rtol, cg_max, start=ops.start, flexible=ops.flexible)
             log.debug("CG: %d iterations to %.1e", k, history["eta"] if callable(rtol) else rtol)
