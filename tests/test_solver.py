@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 import gdfe
 from gdfe.design import Material
@@ -259,7 +260,10 @@ def test_newton_cg_products_and_coarse_matrix_match_the_assembled_hessian(turn, 
     np.testing.assert_allclose(apply_H(v), expect, rtol=0, atol=1e-12 * np.abs(expect).max())
     Z3 = hs.coarse.Z3
     Hc = (Z3.T @ H @ Z3).toarray()
-    np.testing.assert_allclose(hs.coarse_matrix(lin, rest, mu).toarray(), Hc, rtol=0, atol=1e-12 * np.abs(Hc).max())
+    C = hs.coarse_matrix(lin, rest, mu)
+    np.testing.assert_allclose(C.toarray(), Hc, rtol=0, atol=1e-12 * np.abs(Hc).max())
+    # sorted indices, no duplicates (checked on a fresh matrix of its arrays): laid out as CSR/CSC asks
+    assert sp.csc_matrix((C.data.copy(), C.indices.copy(), C.indptr.copy()), shape=C.shape).has_canonical_format
     assert hs.coarse.spacing >= 2 and Z3.shape[1] < Z3.shape[0] / 3  # two cells apart: about a quarter, more at the rim
 
 

@@ -318,22 +318,39 @@ class CoarseCells:
     @classmethod
     def of(cls, coarse_cell, corners, k, Lc3):
         """From every cell's coarse cell (any integer label), its corner columns ``corners`` ``(m, 8)``
-        on a coarse grid of ``k`` vertices, and ``Lc3`` (3k x 3k)."""
+        on a coarse grid of ``k`` vertices, and ``Lc3`` (3k x 3k).
+
+        The pattern is found on the coarse vertices (8 x 8 pairs per coarse cell, nine times
+        fewer to sort than the 24 x 24 unknowns: 0.39 s to 0.07 s on the 10^5-cell corrugation),
+        and every pair of vertices is then a 3 x 3 block laid out in the CSR order of the unknowns.
+        """
         _, group, counts = np.unique(coarse_cell, return_inverse=True, return_counts=True)
         order = np.argsort(group.ravel(), kind="stable")
         starts = np.concatenate([[0], np.cumsum(counts)])
-        columns = (3 * corners[order[starts[:-1]]].astype(np.int64)[:, :, None] + np.arange(3)).reshape(-1, 24)
-        n = 3 * k
-        flat = (columns[:, :, None] * n + columns[:, None, :]).ravel()
-        Lc = Lc3.tocoo()
-        lkeys = Lc.row.astype(np.int64) * n + Lc.col
-        keys, at = np.unique(np.concatenate([flat, lkeys]), return_inverse=True)
+        nodes = corners[order[starts[:-1]]].astype(np.int64)  # (g, 8): each coarse cell's corner vertices
+        columns = (3 * nodes[:, :, None] + np.arange(3)).reshape(-1, 24)
+        Lc = Lc3[::3, ::3].tocoo()  # the coarse n x n system on the vertices (Lc3 = Lc (x) I3)
+        pairs = (nodes[:, :, None] * k + nodes[:, None, :]).ravel()
+        keys, at = np.unique(np.concatenate([pairs, Lc.row.astype(np.int64) * k + Lc.col]), return_inverse=True)
         at = at.ravel()
-        indptr = np.concatenate([[0], np.cumsum(np.bincount(keys // n, minlength=n))])
-        itype = np.int32 if keys.size < 2**31 else np.int64  # half the memory of the scatter (g * 576 entries)
-        return cls(order=order, starts=starts, columns=columns, indptr=indptr, indices=(keys % n).astype(np.int32),
-                   scatter=at[:flat.size].astype(itype),
-                   L_values=np.bincount(at[flat.size:], weights=Lc.data, minlength=keys.size))
+        row, col = keys // k, keys % k
+        degree = np.bincount(row, minlength=k)
+        first = np.concatenate([[0], np.cumsum(degree)])[:-1]  # each vertex's first pair
+        abc = np.arange(3)
+        # unknown (3 r + a, 3 c + b) of pair p = (r, c): row 3 r + a begins at 9 first[r] + 3 a degree[r],
+        # and holds the pair's three columns at 3 (p - first[r]) + b
+        position = (9 * first[row] + 3 * (np.arange(keys.size) - first[row]))[:, None, None] \
+            + 3 * abc[None, :, None] * degree[row][:, None, None] + abc[None, None, :]  # (pairs, a, b)
+        indptr = np.append((9 * first[:, None] + 3 * abc * degree[:, None]).ravel(), 9 * keys.size)
+        indices = np.empty(9 * keys.size, np.int32)
+        indices[position] = 3 * col[:, None, None] + abc[None, None, :]
+        itype = np.int32 if indices.size < 2**31 else np.int64  # half the memory of the scatter (g * 576 entries)
+        # a coarse cell's block entry (q1, b1; q2, b2) lies on the pair of its corners q1, q2
+        scatter = position[at[:pairs.size].reshape(-1, 8, 8)].transpose(0, 1, 3, 2, 4).ravel().astype(itype)
+        L_values = np.zeros(indices.size)
+        L_values[position[at[pairs.size:]][:, abc, abc]] = Lc.data[:, None]  # L (x) I3: the diagonal of each block
+        return cls(order=order, starts=starts, columns=columns, indptr=indptr, indices=indices, scatter=scatter,
+                   L_values=L_values)
 
     def gram_values(self, lin, pc):
         """``(J Z)^T (J Z)``: its values on the pattern ``indptr``, ``indices``, from the linearisation ``lin`` and the coarse rest shapes ``pc``."""
