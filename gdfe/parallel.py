@@ -46,7 +46,9 @@ def parallel_map(func, items, n_jobs=None, desc=None, progress=None, scheduler=N
     items : iterable
     n_jobs : int, optional
         Local worker processes; default the ``GDFE_JOBS`` environment variable, else the
-        number of CPU cores. 1 runs in this process. Ignored with a scheduler.
+        number of CPU cores. 1 runs in this process. Ignored with a scheduler. Each process
+        runs the solver on its share of :data:`gdfe.solver.threads.WORKERS`
+        (:class:`gdfe.solver.threads.Shared`).
     desc : str, optional
         Label of the progress bar.
     progress : bool, optional
@@ -89,8 +91,11 @@ def parallel_map(func, items, n_jobs=None, desc=None, progress=None, scheduler=N
         except ModuleNotFoundError:
             log.info("joblib not installed: running %d tasks serially", len(items))
             return parallel_map(func, items, n_jobs=1, desc=desc, progress=progress)
+        from gdfe.solver.threads import Shared
+
+        shared = Shared(func, min(n_jobs, len(items)))  # the solver's threads divided among the processes
         out = []
-        for res in Parallel(n_jobs=n_jobs, return_as="generator")(delayed(func)(x) for x in items):
+        for res in Parallel(n_jobs=n_jobs, return_as="generator")(delayed(shared)(x) for x in items):
             out.append(res)
             if bar:
                 bar.update()

@@ -1,6 +1,10 @@
 """The solver's products on threads (gdfe.solver.threads): the same bits as one thread, no deadlock, clear errors."""
 
+import multiprocessing
+import os
+import pickle
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -147,3 +151,35 @@ def test_a_newton_cg_solve_is_the_same_bits_on_one_thread_and_on_two(every_size,
     assert one.converged and two.converged
     assert one.iterations == two.iterations and one.energy == two.energy
     assert np.array_equal(one.points, two.points)
+
+
+def _pool_thread_name():
+    """In a forked child: which thread ran the second half of a side-by-side pair (after the parent's pool was made)."""
+    threads.THREAD_ROWS = 0
+    threads.WORKERS = 2
+    _, name = threads.side_by_side(lambda: time.sleep(0.2), lambda: threading.current_thread().name)
+    return name, threads._pool_key[1] == os.getpid()
+
+
+def test_a_forked_process_makes_its_own_pool(every_size, monkeypatch):
+    monkeypatch.setattr(threads, "WORKERS", 2)
+    threads.side_by_side(lambda: None, lambda: None)  # the parent's pool exists
+    with multiprocessing.get_context("fork").Pool(1) as pool:
+        name, own = pool.apply(_pool_thread_name)
+    assert own and name.startswith("gdfe-solver")  # really on a thread of the child's own pool
+
+
+def _workers_here(_):
+    return threads.WORKERS
+
+
+def test_worker_processes_share_the_threads(monkeypatch):
+    pytest.importorskip("joblib")
+    from gdfe.parallel import parallel_map
+
+    monkeypatch.setattr(threads, "WORKERS", 4)
+    shared = pickle.loads(pickle.dumps(threads.Shared(_workers_here, 2)))
+    assert shared.share == 2 and threads.Shared(_workers_here, 8).share == 1
+    assert shared(None) == 2 and threads.WORKERS == 2  # set in the process that runs it
+    monkeypatch.setattr(threads, "WORKERS", 2)
+    assert parallel_map(_workers_here, range(4), n_jobs=2, progress=False) == [1, 1, 1, 1]

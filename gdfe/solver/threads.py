@@ -28,7 +28,7 @@ import scipy.sparse as sp
 
 from gdfe._validation import GdfeError
 
-__all__ = ["WORKERS", "THREAD_ROWS", "workers", "side_by_side", "in_order", "ranges", "RowBlocks"]
+__all__ = ["WORKERS", "THREAD_ROWS", "workers", "side_by_side", "in_order", "ranges", "RowBlocks", "Shared"]
 
 
 def _default_workers():
@@ -53,7 +53,7 @@ WORKERS = _default_workers()
 THREAD_ROWS = 5000
 
 _pool = None
-_pool_size = 0
+_pool_key = None  # (size, process id) of the pool: a forked child makes its own (the parent's threads are not in it)
 _pool_lock = threading.Lock()
 
 
@@ -66,14 +66,14 @@ def workers() -> int:
 
 def _executor():
     """The shared pool of ``workers() - 1`` threads (the calling thread is the other), made on first use."""
-    global _pool, _pool_size
-    size = workers() - 1
+    global _pool, _pool_key
+    key = (workers() - 1, os.getpid())
     with _pool_lock:
-        if _pool is None or _pool_size != size:
-            if _pool is not None:
+        if _pool is None or _pool_key != key:
+            if _pool is not None and _pool_key[1] == key[1]:
                 _pool.shutdown(wait=False)
-            _pool = ThreadPoolExecutor(size, thread_name_prefix="gdfe-solver")
-            _pool_size = size
+            _pool = ThreadPoolExecutor(key[0], thread_name_prefix="gdfe-solver")
+            _pool_key = key
         return _pool
 
 
@@ -151,6 +151,24 @@ def in_order(fn, items):
     if errors:
         raise errors[min(errors)]
     return results
+
+
+class Shared:
+    """``func`` run in one of ``jobs`` worker processes that share the cores (:func:`gdfe.parallel.parallel_map`).
+
+    It sets the worker's :data:`WORKERS` to its share, ``WORKERS // jobs`` and at least one, so
+    that the processes' threads do not outnumber the cores; the answers do not depend on it.
+    Picklable where ``func`` is.
+    """
+
+    def __init__(self, func, jobs):
+        self.func, self.jobs = func, max(1, int(jobs))
+        self.share = max(1, workers() // self.jobs)
+
+    def __call__(self, x):
+        global WORKERS
+        WORKERS = self.share
+        return self.func(x)
 
 
 def _row_view(A, s, e):
