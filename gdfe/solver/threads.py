@@ -14,7 +14,9 @@ row block is a view of the matrix's own rows, and nothing is summed in another o
 The answers are bitwise those of one thread, whatever :data:`WORKERS` is.
 
 ``GDFE_THREADS`` (an integer >= 1) in the environment sets :data:`WORKERS`; ``1`` runs
-everything in the calling thread.
+everything in the calling thread. Worker processes that share the cores take a share each
+(:class:`Shared`, used by :func:`gdfe.parallel.parallel_map`), and a forked process makes
+its own pool (the parent's threads are not in it).
 """
 
 from __future__ import annotations
