@@ -165,12 +165,13 @@ def test_gap_of_a_rolled_strip_equals_the_brute_force_one(gap):
 def test_check_answers_the_same_in_any_chunks_and_threads(monkeypatch):
     """The 9 mm hinge's overlap and a rolled strip's gap, whole and in small chunks, on one thread and on three."""
     import gdfe.solver.penetration as pen
+    from gdfe.solver import threads
 
     res = gdfe.simulate(gdfe.hinge(9.0, d=0.33), contact="off")
     cases = [(res.design, res.points), _spiral(0.02)]
     answers = []
     for workers, chunk, gap_chunk in ((1, pen._CHUNK, pen._GAP_CHUNK), (3, 97, 13)):
-        monkeypatch.setattr(pen, "CHECK_WORKERS", workers)
+        monkeypatch.setattr(threads, "WORKERS", workers)
         monkeypatch.setattr(pen, "_CHUNK", chunk)
         monkeypatch.setattr(pen, "_GAP_CHUNK", gap_chunk)
         answers.append([PenetrationCheck(des)(X) for des, X in cases])

@@ -1,10 +1,10 @@
 """The solver's products on threads (gdfe.solver.threads): the same bits as one thread, no deadlock, clear errors."""
 
+import functools
 import multiprocessing
 import os
 import pickle
 import threading
-import time
 
 import numpy as np
 import pytest
@@ -63,7 +63,8 @@ def test_small_products_stay_in_the_calling_thread(monkeypatch):
     rb @ np.ones(10)
     assert rb._blocks == {}  # below THREAD_ROWS: never split
     assert threads.ranges(10) == [(0, 10)]
-    assert threads.ranges(10, rows=threads.THREAD_ROWS) == [(0, 5), (5, 10)]
+    monkeypatch.setattr(threads, "THREAD_ROWS", 10)
+    assert threads.ranges(10) == [(0, 5), (5, 10)]
 
 
 def test_side_by_side_and_in_order_return_in_order_and_raise_with_the_traceback(every_size, monkeypatch):
@@ -120,8 +121,21 @@ def test_workers_are_checked(monkeypatch):
     monkeypatch.setenv("GDFE_THREADS", "3")
     assert threads._default_workers() == 3
     monkeypatch.setattr(threads, "WORKERS", 0)
-    with pytest.raises(GdfeError, match="WORKERS: expected an integer >= 1, got 0"):
+    with pytest.raises(GdfeError, match="WORKERS: expected an integer >= 1 or None, got 0"):
         threads.workers()
+
+
+def test_a_bad_gdfe_threads_is_one_line_from_the_command_line(capsys, monkeypatch):
+    """Read when first needed, not when gdfe is imported: the command line reports it like any bad input."""
+    from gdfe.cli import main
+
+    monkeypatch.setattr(threads, "WORKERS", None)
+    monkeypatch.setattr(threads, "_environment_workers", functools.lru_cache(maxsize=None)(threads._default_workers))
+    monkeypatch.setenv("GDFE_THREADS", "lots")
+    rc = main(["hinge", "-L", "1.6", "--d", "0.33"])
+    err = capsys.readouterr().err
+    assert rc == 1 and "Traceback" not in err and err.count("\n") == 1, err
+    assert "GDFE_THREADS: expected an integer >= 1, got 'lots'" in err
 
 
 def test_vcycle_and_its_solve_are_the_same_bits_on_threads(every_size, monkeypatch):
@@ -154,10 +168,20 @@ def test_a_newton_cg_solve_is_the_same_bits_on_one_thread_and_on_two(every_size,
 
 
 def _pool_thread_name():
-    """In a forked child: which thread ran the second half of a side-by-side pair (after the parent's pool was made)."""
+    """In a forked child: which thread ran the second half of a side-by-side pair (after the parent's pool was made).
+
+    The first half waits until the second has started, so the second is never left to the
+    calling thread (it would be, cancelled, if no pool thread took it up).
+    """
     threads.THREAD_ROWS = 0
     threads.WORKERS = 2
-    _, name = threads.side_by_side(lambda: time.sleep(0.2), lambda: threading.current_thread().name)
+    started = threading.Event()
+
+    def second():
+        started.set()
+        return threading.current_thread().name
+
+    _, name = threads.side_by_side(lambda: started.wait(30), second)
     return name, threads._pool_key[1] == os.getpid()
 
 
@@ -180,6 +204,6 @@ def test_worker_processes_share_the_threads(monkeypatch):
     monkeypatch.setattr(threads, "WORKERS", 4)
     shared = pickle.loads(pickle.dumps(threads.Shared(_workers_here, 2)))
     assert shared.share == 2 and threads.Shared(_workers_here, 8).share == 1
-    assert shared(None) == 2 and threads.WORKERS == 2  # set in the process that runs it
+    assert shared(None) == 2 and threads.WORKERS == 4  # its share while it runs, and back after
     monkeypatch.setattr(threads, "WORKERS", 2)
     assert parallel_map(_workers_here, range(4), n_jobs=2, progress=False) == [1, 1, 1, 1]

@@ -64,7 +64,8 @@ import scipy.sparse as sp
 from gdfe._validation import GdfeError, check_array, check_instance, check_positive
 from gdfe.design import Design, Material
 from gdfe.solver.energy import system_matrix
-from gdfe.solver.penetration import CHECK_WORKERS, surface_triangles
+from gdfe.solver.penetration import surface_triangles
+from gdfe.solver.threads import workers
 
 __all__ = ["CONTACT_MODES", "DHAT_H", "DHAT_CELL", "STIFFNESS_SCALE", "CONTACT_THREADS", "CCD_TIGHT_INCLUSION",
            "SWEEP_INFLATION", "SWEEP_REUSE", "contact_available", "require_ipctk", "default_dhat", "default_stiffness",
@@ -420,12 +421,12 @@ class Contact:
         """Whether the boundary surface of the shape ``V`` ``(n, 3)`` [mm] crosses itself (the IPC Toolkit's test).
 
         Pairs within one patch (:func:`contact_patches`) are not tested. A yes or no does not
-        depend on the order of a parallel search: the test runs on :data:`gdfe.solver.penetration.CHECK_WORKERS`
-        threads (0.72 -> 0.35 s on the 10^5-cell twist, 2 cores), the contact terms on
+        depend on the order of a parallel search: the test runs on the solver's threads
+        (:func:`gdfe.solver.threads.workers`) (0.72 -> 0.35 s on the 10^5-cell twist, 2 cores), the contact terms on
         :data:`CONTACT_THREADS`.
         """
         X = self._surface_points(V)
-        self._ipctk.set_num_threads(CHECK_WORKERS)
+        self._ipctk.set_num_threads(workers())
         try:
             return bool(self._ipctk.has_intersections(self.mesh, X))
         finally:

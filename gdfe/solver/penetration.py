@@ -24,7 +24,8 @@ and finds:
   touches the vertex and is centred on its normal: within 60 degrees of the normal at the
   search range ``r``, wider nearer) and is not its neighbour, within that range.
 
-The searches run in chunks (bounded memory at 10^6 cells) on :data:`CHECK_WORKERS` threads;
+The searches run in chunks (bounded memory at 10^6 cells) on the solver's threads
+(:func:`gdfe.solver.threads.workers`; 2 threads took the 10^5-cell twist's check 1.9 x faster on 2 cores);
 the answer does not depend on either.
 
 "Neighbours" are kept out of all of them: a vertex and a cell are neighbours when the cell
@@ -36,8 +37,6 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import os
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import scipy.sparse as sp
@@ -46,6 +45,7 @@ from scipy.spatial import cKDTree
 from gdfe._validation import check_array, check_instance, check_positive
 from gdfe.design import Design
 from gdfe.io import surface_faces
+from gdfe.solver.threads import in_order
 
 __all__ = ["GAP_RANGE_H", "Penetration", "PenetrationCheck", "check_penetration", "surface_triangles",
            "point_triangle_closest", "segments_cross_triangles"]
@@ -66,10 +66,6 @@ _CHUNK = 65_536
 # the gap search's chunk of vertices: fine pixels put ~80 triangles of a face within its range of
 # every vertex (the Figure 8 plate at 25 um: 1.5 GiB for chunks of 65 536 vertices)
 _GAP_CHUNK = 8_192
-#: Threads of a check: its chunks run side by side (SciPy's k-d tree searches and NumPy's array
-#: operations release the interpreter lock; 2 threads took the 10^5-cell twist's check 1.9 x
-#: faster on 2 cores). The answer does not depend on it.
-CHECK_WORKERS = min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
 # the six tetrahedra of a hexahedron (VTK order) about its diagonal 0-6
 _HEX_TETS = np.array([[0, 1, 2, 6], [0, 2, 3, 6], [0, 3, 7, 6], [0, 7, 4, 6], [0, 4, 5, 6], [0, 5, 1, 6]])
 
@@ -494,16 +490,13 @@ def _stage(what, step=None, total=None):
 
 
 def _map(fn, items, what):
-    """``[fn(x) for x in items]``, on :data:`CHECK_WORKERS` threads; progress logged as ``what``."""
+    """``[fn(x) for x in items]``, on the solver's threads (:func:`gdfe.solver.threads.in_order`); progress logged as ``what``."""
     items = list(items)
 
     def run(k):
         _stage(what, k + 1, len(items))
         return fn(items[k])
-    if CHECK_WORKERS <= 1 or len(items) <= 1:
-        return [run(k) for k in range(len(items))]
-    with ThreadPoolExecutor(min(CHECK_WORKERS, len(items))) as pool:
-        return list(pool.map(run, range(len(items))))
+    return in_order(run, range(len(items)))
 
 
 class _Triangles:

@@ -13,14 +13,16 @@ Every row of every product is computed exactly as the serial product computes it
 row block is a view of the matrix's own rows, and nothing is summed in another order.
 The answers are bitwise those of one thread, whatever :data:`WORKERS` is.
 
-``GDFE_THREADS`` (an integer >= 1) in the environment sets :data:`WORKERS`; ``1`` runs
-everything in the calling thread. Worker processes that share the cores take a share each
+``GDFE_THREADS`` (an integer >= 1) in the environment sets how many (:func:`workers`); ``1``
+runs everything in the calling thread. The self-penetration check's searches and the IPC
+Toolkit's crossing test run on as many (:mod:`gdfe.solver.penetration`, :mod:`gdfe.solver.contact`). Worker processes that share the cores take a share each
 (:class:`Shared`, used by :func:`gdfe.parallel.parallel_map`), and a forked process makes
 its own pool (the parent's threads are not in it).
 """
 
 from __future__ import annotations
 
+import functools
 import os
 import threading
 from concurrent.futures import ThreadPoolExecutor, wait
@@ -34,6 +36,7 @@ __all__ = ["WORKERS", "THREAD_ROWS", "workers", "side_by_side", "in_order", "ran
 
 
 def _default_workers():
+    """The threads ``GDFE_THREADS`` asks for, else the cores this process may use, at most 4."""
     forced = os.environ.get("GDFE_THREADS", "").strip()
     if forced:
         try:
@@ -47,9 +50,11 @@ def _default_workers():
     return max(1, min(4, cores))
 
 
-#: Threads the solver's products run on (the calling thread among them): the cores this
-#: process may use, at most 4, or ``GDFE_THREADS``.
-WORKERS = _default_workers()
+#: Threads the solver's products run on (the calling thread among them); None (the default): the
+#: cores this process may use, at most 4, or ``GDFE_THREADS``, read when first needed, so that a
+#: bad value is refused where the command line reports errors, not when gdfe is imported.
+WORKERS = None
+_environment_workers = functools.lru_cache(maxsize=None)(_default_workers)  # an error is not kept
 #: Products with fewer rows than this run in the calling thread alone: handing a product to
 #: another thread costs tens of microseconds, more than the product itself on small designs.
 THREAD_ROWS = 5000
@@ -60,9 +65,11 @@ _pool_lock = threading.Lock()
 
 
 def workers() -> int:
-    """:data:`WORKERS`, checked (it may be set at run time)."""
+    """The threads to use: :data:`WORKERS` checked (it may be set at run time), or from the environment where None."""
+    if WORKERS is None:
+        return _environment_workers()
     if not isinstance(WORKERS, (int, np.integer)) or isinstance(WORKERS, bool) or WORKERS < 1:
-        raise GdfeError(f"gdfe.solver.threads.WORKERS: expected an integer >= 1, got {WORKERS!r}")
+        raise GdfeError(f"gdfe.solver.threads.WORKERS: expected an integer >= 1 or None, got {WORKERS!r}")
     return int(WORKERS)
 
 
@@ -106,12 +113,10 @@ def side_by_side(first, second, rows=None):
     return a, (second() if future.cancelled() else future.result())
 
 
-def ranges(n, rows=None):
-    """``[(start, stop), ...]``: ``range(n)`` in :func:`workers` contiguous parts of about equal size.
-
-    One part where ``rows`` (the size of the work; default ``n``) is below :data:`THREAD_ROWS`.
-    """
-    parts = 1 if (n if rows is None else rows) < THREAD_ROWS else min(workers(), max(n, 1))
+def ranges(n):
+    """``[(start, stop), ...]``: ``range(n)`` in :func:`workers` contiguous parts of about equal size
+    (one part below :data:`THREAD_ROWS`)."""
+    parts = 1 if n < THREAD_ROWS else min(workers(), n)
     edges = np.linspace(0, n, parts + 1).round().astype(int)
     return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:])]
 
@@ -158,7 +163,7 @@ def in_order(fn, items):
 class Shared:
     """``func`` run in one of ``jobs`` worker processes that share the cores (:func:`gdfe.parallel.parallel_map`).
 
-    It sets the worker's :data:`WORKERS` to its share, ``WORKERS // jobs`` and at least one, so
+    While it runs, :data:`WORKERS` is its share, ``workers() // jobs`` and at least one, so
     that the processes' threads do not outnumber the cores; the answers do not depend on it.
     Picklable where ``func`` is.
     """
@@ -169,8 +174,11 @@ class Shared:
 
     def __call__(self, x):
         global WORKERS
-        WORKERS = self.share
-        return self.func(x)
+        before, WORKERS = WORKERS, self.share
+        try:
+            return self.func(x)
+        finally:
+            WORKERS = before
 
 
 def _row_view(A, s, e):
@@ -221,7 +229,8 @@ class RowBlocks:
         if parts < 2 or self.shape[0] < THREAD_ROWS:
             return self.matrix @ x
         first, *rest = self.blocks(parts)
-        futures = [_executor().submit(block.__matmul__, x) for block in rest]
+        pool = _executor()
+        futures = [pool.submit(block.__matmul__, x) for block in rest]
         try:
             head = first @ x
         finally:
