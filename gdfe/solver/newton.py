@@ -234,8 +234,8 @@ class CoarseSpace:
         vertex's row is zero.
     Z3 : (3n, 3k) sparse matrix
         ``Z (x) I3`` (made when asked for: only the contact barrier's Hessian needs it).
-    Lc3 : (3k, 3k) sparse matrix
-        ``(Z_f^T L_ff Z_f) (x) I3``, the coarse n x n system for the three coordinates.
+    Lc : (k, k) sparse matrix
+        ``Z_f^T L_ff Z_f``, the coarse n x n system (each coordinate's: ``Lc (x) I3`` for the three).
     Zt : (k, n) sparse matrix
         ``Z^T`` (CSR), made once: the restriction of every coarse correction.
     corners : (m, 8) int array
@@ -252,7 +252,7 @@ class CoarseSpace:
     """
 
     Z: sp.csr_matrix
-    Lc3: sp.csc_matrix
+    Lc: sp.spmatrix
     Zt: sp.csr_matrix
     corners: np.ndarray
     spacing: int
@@ -276,7 +276,7 @@ class CoarseSpace:
     @functools.cached_property
     def cells(self) -> CoarseCells:
         """The cells grouped by coarse cell (:class:`CoarseCells`), made on first use."""
-        return CoarseCells.of(self.coarse_cell, self.corners, self.Z.shape[1], self.Lc3)
+        return CoarseCells.of(self.coarse_cell, self.corners, self.Z.shape[1], self.Lc)
 
 
 @dataclasses.dataclass(eq=False)
@@ -303,7 +303,7 @@ class CoarseCells:
     scatter : (g * 576,) int array
         The index into that pattern's values of every block entry.
     L_values : (nnz,) float array
-        ``Lc3`` (:class:`CoarseSpace`) on that pattern (which holds its entries too), so that the
+        ``Lc (x) I3`` (:class:`CoarseSpace`) on that pattern (which holds its entries too), so that the
         coarse matrix is made on it with no sparse sum or conversion.
     """
 
@@ -316,9 +316,9 @@ class CoarseCells:
     L_values: np.ndarray
 
     @classmethod
-    def of(cls, coarse_cell, corners, k, Lc3):
+    def of(cls, coarse_cell, corners, k, Lc):
         """From every cell's coarse cell (any integer label), its corner columns ``corners`` ``(m, 8)``
-        on a coarse grid of ``k`` vertices, and ``Lc3`` (3k x 3k).
+        on a coarse grid of ``k`` vertices, and ``Lc`` (k x k).
 
         The pattern is found on the coarse vertices (8 x 8 pairs per coarse cell, nine times
         fewer to sort than the 24 x 24 unknowns: 0.39 s to 0.07 s on the 10^5-cell corrugation),
@@ -329,7 +329,7 @@ class CoarseCells:
         starts = np.concatenate([[0], np.cumsum(counts)])
         nodes = corners[order[starts[:-1]]].astype(np.int64)  # (g, 8): each coarse cell's corner vertices
         columns = (3 * nodes[:, :, None] + np.arange(3)).reshape(-1, 24)
-        Lc = Lc3[::3, ::3].tocoo()  # the coarse n x n system on the vertices (Lc3 = Lc (x) I3)
+        Lc = sp.coo_matrix(Lc)
         pairs = (nodes[:, :, None] * k + nodes[:, None, :]).ravel()
         keys, at = np.unique(np.concatenate([pairs, Lc.row.astype(np.int64) * k + Lc.col]), return_inverse=True)
         at = at.ravel()
@@ -509,8 +509,7 @@ class ReducedHessian:
         column = np.zeros(max(int(cols.max()), int(keys.max())) + 1, np.int64)
         column[used] = np.arange(used.size)  # a corner no vertex of the cell weighs on gets 0, weight 0
         Zf = Z[steps.free]
-        Lc3 = sp.kron(Zf.T @ steps.L_ff @ Zf, sp.eye(3), format="csc")
-        return CoarseSpace(Z=Z, Lc3=Lc3, Zt=Z.T.tocsr(), corners=column[keys].astype(np.int32), spacing=c,
+        return CoarseSpace(Z=Z, Lc=(Zf.T @ steps.L_ff @ Zf).tocsr(), Zt=Z.T.tocsr(), corners=column[keys].astype(np.int32), spacing=c,
                            coarse_cell=keys[:, 0], ijk=ijk.astype(np.int32), solver=solver)
 
     def _corner_weights(self, s, e):
