@@ -119,3 +119,31 @@ def test_with_a_multigrid_L_is_not_kept_and_its_products_are_exact(monkeypatch):
     assert abs(s.L - L).max() == 0.0
     V = np.random.default_rng(1).standard_normal((s.n, 3))
     np.testing.assert_allclose(s.apply_L(V), L @ V, rtol=0, atol=1e-14 * np.abs(L @ V).max())
+
+
+def test_solve_from_a_guess_meets_the_same_test_in_fewer_cycles():
+    """Multigrid.solve(x0=...): the residual test is relative to b, as from zero; a near guess needs fewer V-cycles."""
+    des = _disc()
+    s = Solver(des)
+    mg = Multigrid(s.L_ff, lattice(des.mesh)[s.free], coarsest=200)
+    A = s.L_ff
+    b = np.random.default_rng(3).standard_normal((len(s.free), 3))
+    cycles = []
+    vcycle = mg.vcycle
+
+    def counted(r, *args, **kwargs):
+        cycles[-1] += 1
+        return vcycle(r, *args, **kwargs)
+    near = mg.solve(b, rtol=1e-7)  # an answer to 1e-7, as a Newton solve's last iterate is near its plain step
+    mg.vcycle = counted
+    cycles.append(0)
+    cold = mg.solve(b, rtol=1e-11)
+    cycles.append(0)
+    warm = mg.solve(b, rtol=1e-11, x0=near)
+    for x in (cold, warm):
+        assert np.all(np.linalg.norm(b - A @ x, axis=0) <= 1e-11 * np.linalg.norm(b, axis=0))
+    assert cycles[1] <= 0.6 * cycles[0], cycles
+    np.testing.assert_allclose(warm, cold, rtol=0, atol=1e-9 * np.abs(cold).max())
+    cycles.append(0)
+    one = mg.solve(b[:, 0], x0=near[:, 0])  # a vector and its guess
+    assert one.shape == (len(s.free),) and cycles[2] <= 0.6 * cycles[0]

@@ -96,3 +96,28 @@ def test_auto_init_switches_to_multilevel_above_the_threshold(monkeypatch):
     monkeypatch.setattr(gdfe.solver.simulation, "MULTILEVEL_CELLS", des.n_cells - 1)
     res = gdfe.simulate(des).check()
     assert "start" in res.timings
+
+
+def test_the_set_up_made_beside_the_start_changes_nothing(monkeypatch):
+    """gdfe.simulate makes the fine solve's constants beside the multilevel start (Solver.prepare): the same answer."""
+    import sys
+
+    import gdfe.solver.simulation  # noqa: F401
+
+    sim = sys.modules["gdfe.solver.simulation"]
+    des = _stripes(24)
+    monkeypatch.setattr(sim, "MULTILEVEL_CELLS", des.n_cells - 1)
+    made = []
+    prepare = sim._prepare
+
+    def spy(solver, method, a, monitor):
+        prepare(solver, method, a, monitor)
+        made.append(sorted(k for k in ("multigrid", "reduced_hessian") if k in solver.__dict__))
+        if "reduced_hessian" in solver.__dict__:
+            made[-1] += [k for k in ("coarse", "_j_pattern") if k in solver.reduced_hessian.__dict__]
+    monkeypatch.setattr(sim, "_prepare", spy)
+    res = gdfe.simulate(des, method="newton-cg").check()
+    assert made == [["reduced_hessian", "coarse", "_j_pattern"]]
+    monkeypatch.setattr(sim, "_prepare", lambda *args: None)
+    plain = gdfe.simulate(des, method="newton-cg").check()
+    assert np.array_equal(res.points, plain.points) and res.iterations == plain.iterations

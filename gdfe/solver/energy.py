@@ -436,10 +436,11 @@ class LocalGlobal:
         self.timings["multigrid"] = self.timings.get("multigrid", 0.0) + time.perf_counter() - t0
         return mg
 
-    def solve_free(self, rhs):
-        """``L_ff^{-1} rhs`` for ``rhs`` ``(n - 1, r)``: by :attr:`factor`, or by :attr:`multigrid` to round-off."""
+    def solve_free(self, rhs, guess=None):
+        """``L_ff^{-1} rhs`` for ``rhs`` ``(n - 1, r)``: by :attr:`factor`, or by :attr:`multigrid` to round-off
+        (from ``guess``, like ``rhs``, where given; the factor needs none)."""
         if self.uses_multigrid:
-            return self.multigrid.solve(rhs)
+            return self.multigrid.solve(rhs, x0=guess)
         return self.factor.solve(np.asfortranarray(rhs))
 
     def approx_solve_free(self, rhs):
@@ -477,11 +478,12 @@ class LocalGlobal:
         self.timings["orientation"] += time.perf_counter() - t0
         return Orientation(Q, S, max(E, 0.0))
 
-    def assemble(self, Q, V_pin, activation=1.0, solve=True) -> Assembly:
+    def assemble(self, Q, V_pin, activation=1.0, solve=True, guess=None) -> Assembly:
         """Assembly step: the vertices minimising Eq. 5 for rotations ``Q`` ``(m, 3, 3)``.
 
         The vertex :attr:`pin` is held at ``V_pin`` ``(3,)`` [mm]. With ``solve=False``
         only the right-hand side is made (``Assembly.V`` is None): the gradient needs no solve.
+        ``guess`` ``(n, 3)`` [mm], a shape near the answer, starts the multigrid's solve (:meth:`solve_free`).
         """
         t0 = time.perf_counter()
         P = self.rest(activation).P
@@ -492,7 +494,7 @@ class LocalGlobal:
             return Assembly(None, b)
         rhs = b[self.free] - self.L_fp @ V_pin[None, :]
         V = np.empty((self.n, 3))
-        V[self.free] = self.solve_free(rhs)
+        V[self.free] = self.solve_free(rhs, None if guess is None else guess[self.free])
         V[self.pin] = V_pin
         self.timings["assembly"] += time.perf_counter() - t0
         return Assembly(V, b)

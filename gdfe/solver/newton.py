@@ -537,6 +537,15 @@ class ReducedHessian:
             cached = self._coarse_rest = (rest, out)
         return cached[1]
 
+    def prepare(self, rest):
+        """Make the constants of the CG steps now (the first step of :func:`cg_directions` makes them otherwise):
+        the coarse space and its cells' pattern, the Jacobian's pattern, ``L_free`` and the rest
+        shapes at the coarse corners."""
+        self.coarse.cells  # noqa: B018  (cached)
+        self._j_pattern  # noqa: B018
+        self.steps.L_free  # noqa: B018
+        self.coarse_rest(rest)
+
     # -- per step ------------------------------------------------------------------------
     def linearise(self, Q, S, rest, floor=1.0) -> Linearisation:
         """The :class:`Linearisation` at rotations ``Q`` and cross-covariances ``S``.
@@ -1264,7 +1273,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
             move[steps.free] = steps.approx_solve_free(-0.5 * g[steps.free])
             res = float(np.abs(move).max() / scale)
             if (res <= 2.0 * tol and error <= STEP_TOL_FACTOR * tol) or it >= max_iter or watch.stop:
-                G = steps.assemble(Q, Vp, activation).V
+                G = steps.assemble(Q, Vp, activation, guess=V + move).V  # the exact solve, from the approximate step
                 res = float(np.abs(G - V).max() / scale)
         elif contact is None:
             res = float(np.abs(G - V).max() / scale)

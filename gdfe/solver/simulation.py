@@ -23,6 +23,7 @@ from gdfe.solver.methods import METHODS, Solver, auto_method, check_tol
 from gdfe.solver.newton import ON_DRIFT, STEP_TOL_FACTOR
 from gdfe.solver.penetration import Penetration, PenetrationCheck
 from gdfe.solver.starts import flat_start, multilevel_start
+from gdfe.solver.threads import side_by_side
 
 __all__ = ["Result", "ConvergenceError", "simulate", "INITS", "MULTILEVEL_CELLS", "CONTACT_LEVELS",
            "CONTACT_LEVEL_TOL", "CONTACT_LEVEL_ITER", "AUTO_CHECK_EVERY", "WATCH_MAX_CELLS", "SHAPE_ACCURACY", "ALTERNATION_TOL",
@@ -512,24 +513,33 @@ def _check_frames(design, frames):
     return pens, time.perf_counter() - t0
 
 
-def _first_start(solver, design, init, start, seed, a):
+def _first_start(solver, design, init, start, seed, a, beside=None):
     """The starting shape of the first frame, at activation ``a``.
 
     ``start`` is a given shape with the activation it is meant for, ``(V, a_start)``: at a
-    lower ``a`` it is taken that fraction of the way from the flat print.
+    lower ``a`` it is taken that fraction of the way from the flat print. ``beside``, a
+    function of no arguments, runs beside the multilevel start on the solver's second thread
+    (:func:`gdfe.solver.threads.side_by_side`): the set-up of the solve that follows.
     """
     V = design.mesh.points.copy()
     if init == "linear":
         return solver.linearised_start(V, a)
     if init == "multilevel":
         t_start = time.perf_counter()
-        V = multilevel_start(design, a)
+        V, _ = side_by_side(lambda: multilevel_start(design, a), beside or (lambda: None))
         solver.timings["start"] = solver.timings.get("start", 0.0) + time.perf_counter() - t_start
         return V
     if init == "given":
         V0, a_start = start
         return V0.copy() if a >= a_start else V + (a / a_start) * (V0 - V)
     return flat_start(design, seed)
+
+
+def _prepare(solver, method, a, monitor):
+    """What the first frame's solve and ``monitor`` (a :class:`_Watch`, or None) make on first use from the mesh alone."""
+    solver.prepare(method, a)
+    if isinstance(monitor, _Watch):
+        monitor.surface()
 
 
 def _clear_start(solver, term, init, start, seed, a, method, max_iter, depth=0):
@@ -573,7 +583,8 @@ def _run_frames(solver, acts, method, term, *, init, start, seed, tol, max_iter,
                   extra={"progress": {"event": "frame", "frame": k + 1, "frames": len(acts) - 1}})
         if term is None:
             if k == 0:
-                V = _first_start(solver, design, init, start, seed, a)
+                V = _first_start(solver, design, init, start, seed, a, beside=functools.partial(
+                    _prepare, solver, method, a, monitor))
             watch = None if monitor is None else functools.partial(monitor, k + 1)
             stats = solver.solve(V, a, method=method, tol=tol, max_iter=max_iter, history=history,
                                  on_drift=on_drift, monitor=watch)
