@@ -16,7 +16,7 @@ def test_quick_bench_reports_every_section_and_verdict(capsys, tmp_path):
     assert main(["bench", "--quick", "--json", "--out", str(tmp_path)]) == 0
     res = json.loads(capsys.readouterr().out)
     assert res["machine"]["cores"] >= 1
-    assert res["machine"]["factor_backend"] in ("cholmod", "superlu")
+    assert res["machine"]["factor_backend"] in ("cholmod", "cvxopt", "superlu")
     methods = {r["method"] for r in res["hinges"]}
     assert methods == {"newton", "newton-cg", "anderson", "plain"}
     assert all(r["converged"] for r in res["hinges"] if r["method"].startswith("newton"))
@@ -126,9 +126,9 @@ def test_factorisation_backends_agree(monkeypatch):
 
 def test_unknown_factor_backend_is_rejected(monkeypatch):
     monkeypatch.setenv("GDFE_FACTOR", "mumps")
-    with pytest.raises(ValueError, match="GDFE_FACTOR: expected one of 'cholmod', 'superlu', got 'mumps'"):
+    with pytest.raises(ValueError, match="GDFE_FACTOR: expected one of 'cholmod', 'cvxopt', 'superlu', got 'mumps'"):
         factor_backend()
-    with pytest.raises(ValueError, match="backend: expected one of 'cholmod', 'superlu', got 'mumps'"):
+    with pytest.raises(ValueError, match="backend: expected one of 'cholmod', 'cvxopt', 'superlu', got 'mumps'"):
         factorise(gdfe.system_matrix(gdfe.hinge(1.0, d=0.33)), backend="mumps")
 
 

@@ -25,7 +25,7 @@ import scipy.sparse as sp
 from gdfe import _memory
 from gdfe._validation import GdfeError, check_choice, check_int
 from gdfe.solver.energy import SolveStats
-from gdfe.solver.linalg import factorise
+from gdfe.solver.linalg import Factoriser, factorise
 from gdfe.solver.multigrid import lattice
 from gdfe.solver.threads import in_order, ranges, side_by_side
 
@@ -609,6 +609,12 @@ class ReducedHessian:
             Hc = sp.csc_matrix(Hc + cs.Z3.T @ extra @ cs.Z3)
         return Hc
 
+    @functools.cached_property
+    def _coarse_factoriser(self):
+        """The coarse matrices' :class:`~gdfe.solver.linalg.Factoriser`: one pattern at every step, analysed once
+        (with the contact barrier's Hessian added the pattern changes, and is analysed anew)."""
+        return Factoriser()
+
     def coarse_factor(self, lin, rest, mu, extra=None, V=None):
         """:meth:`coarse_matrix` factorised, or its smoothed-aggregation solver (:attr:`coarse_solver`); None when it is singular.
 
@@ -625,7 +631,7 @@ class ReducedHessian:
             except np.linalg.LinAlgError:  # its coarsest level is not positive definite
                 return None
         try:
-            return factorise(Hc)
+            return self._coarse_factoriser(Hc)
         except RuntimeError:  # SuperLU: exactly singular
             return None
 
