@@ -152,6 +152,12 @@ def status_word(res):
     return "converged" if res.converged else "NOT CONVERGED"
 
 
+def shown(x, digits):
+    """``x`` rounded to the ``digits`` it is printed with, a negative zero made 0: a fold of round-off
+    size (-1e-14 rad where nothing contracts) prints as 0.0000, not -0.0000."""
+    return round(float(x), digits) + 0.0
+
+
 def iterations_text(res):
     """``converged in 33 iterations over 5 frames (4-9 per frame)`` (or in N iterations, one frame)."""
     per = list(res.frame_iterations)

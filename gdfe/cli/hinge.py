@@ -8,7 +8,7 @@ from pathlib import Path
 from gdfe import paper
 from gdfe._validation import GdfeError, check_int
 from gdfe.cli._common import (contact_fields, contact_text, emit, exit_status, file_path, iterations_text, json_arg,
-                               noting, out_arg, output_folder, process_arg, solve, solver_args, status_word,
+                               noting, out_arg, output_folder, process_arg, shown, solve, solver_args, status_word,
                                write_outputs)
 from gdfe.cli._progress import progress_mode
 from gdfe.cli._uncertainty import check_uncertainty, run_ensemble, uncertainty_args, write_ensemble
@@ -107,7 +107,7 @@ def _run(args, folder):
         ens = run_ensemble(design, model, n_draws, args, res, _hinge_measure, ["hinge"], process=args.process)
         out["uncertainty"] = ens.as_dict()
     if folder is not None:
-        out["title"] = f"hinge L={args.length:g} mm: fold angle {alpha:.4f} rad ({math.degrees(alpha):.1f} deg)"
+        out["title"] = f"hinge L={args.length:g} mm: fold angle {shown(alpha, 4):.4f} rad ({shown(math.degrees(alpha), 1):.1f} deg)"
         with folder:
             folder.status.update(converged=bool(res.converged), status=status_word(res))
             out["files"] = write_outputs(res, args.out, "hinge", out, progress=progress_mode(args),
@@ -123,10 +123,10 @@ def _run(args, folder):
                       f"{out['panel_lengthened_from_mm']:.3g} mm\n")
     d_text = f"d={args.d:g} mm" if args.d is not None else "R given (no d)"
     text = (f"hinge L={args.length:g} mm, {d_text}, h={args.h:g} mm, R={R:.4f}, nz={args.nz}\n"
-            f"  GDFE fold angle  {alpha:.4f} rad ({math.degrees(alpha):.1f} deg)\n"
-            + (f"  model {model.name}: closed form {out['fold_angle_model_rad']:.4f} rad (error {out['error_rad']:+.4f})\n"
+            f"  GDFE fold angle  {shown(alpha, 4):.4f} rad ({shown(math.degrees(alpha), 1):.1f} deg)\n"
+            + (f"  model {model.name}: closed form {out['fold_angle_model_rad']:.4f} rad (error {shown(out['error_rad'], 4):+.4f})\n"
                if model is not None else
-               f"  Eq. 1            {out['fold_angle_eq1_rad']:.4f} rad (error {out['error_rad']:+.4f})\n"
+               f"  Eq. 1            {out['fold_angle_eq1_rad']:.4f} rad (error {shown(out['error_rad'], 4):+.4f})\n"
                if out["fold_angle_eq1_rad"] is not None else "")
             + f"  Eq. 2 (1-R)L/h   {out['fold_angle_eq2_rad']:.4f} rad\n" + lengthened
             + f"  {iterations_text(res)}, residual {res.residual:.1e}, {res.seconds:.2f} s, {design.n_cells} elements\n"

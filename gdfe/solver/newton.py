@@ -1270,6 +1270,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
     # (a V-cycle estimates its residual otherwise): the Newton step needs only the gradient
     lazy = contact is None and steps.uses_multigrid
     while True:
+        direction = None  # the last step's linearisation, Jacobian and coarse factor: not held beside the next's
         plain = steps.assemble(Q, Vp, activation, solve=not lazy)  # the plain step from V
         G = plain.V
         it += 1
@@ -1279,7 +1280,8 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
             move[steps.free] = steps.approx_solve_free(-0.5 * g[steps.free])
             res = float(np.abs(move).max() / scale)
             if (res <= 2.0 * tol and error <= STEP_TOL_FACTOR * tol) or it >= max_iter or watch.stop:
-                G = steps.assemble(Q, Vp, activation, guess=V + move).V  # the exact solve, from the approximate step
+                move += V  # the approximate plain step: the exact solve starts there
+                G = steps.assemble(Q, Vp, activation, guess=move).V
                 res = float(np.abs(G - V).max() / scale)
         elif contact is None:
             res = float(np.abs(G - V).max() / scale)
