@@ -15,7 +15,7 @@ Three backends (:data:`FACTOR_BACKENDS`), fastest first:
 :func:`factor_backend` takes the first installed; the environment variable ``GDFE_FACTOR``
 forces one. ``gdfe bench`` times them all on the solver's matrices (docs/bench/bench.txt).
 A :class:`Factoriser` factorises a sequence of matrices with one sparsity pattern (the
-coarse matrix of every Newton step) and, with CVXOPT's CHOLMOD, analyses the pattern once.
+coarse matrix of every Newton step) and, with CVXOPT's CHOLMOD, keeps that pattern's form.
 Where CHOLMOD finds a matrix not positive definite, SuperLU factorises it (as before CHOLMOD:
 an LU without pivoting, which an indefinite matrix with nonzero pivots also passes).
 """
@@ -25,7 +25,6 @@ from __future__ import annotations
 import importlib.util
 import logging
 import os
-import weakref
 
 import numpy as np
 import scipy.sparse as sp
@@ -99,12 +98,13 @@ def _canonical(A):
     return A
 
 
-class _CvxoptAnalysis:
-    """CVXOPT's CHOLMOD analysis of one pattern: the lower triangle's entries, the symbolic factor.
+class _CvxoptPattern:
+    """One sparsity pattern in CVXOPT's form: the lower triangle's entries and a sparse matrix on them.
 
-    The numeric factorisation is made in the symbolic factor's own storage, so an analysis
-    holds one factorisation at a time: :class:`Factoriser` makes another numeric
-    factorisation in it only once the last one's :class:`_CvxoptFactor` is gone (:attr:`busy`).
+    Each factorisation analyses it (CHOLMOD's ordering and symbolic factorisation, 20 ms on the
+    10^5-cell corrugation's coarse matrix) into storage of its own, which goes with its factor:
+    an analysis kept across Newton steps would keep its numeric factor too, beside the next
+    step's line search (at 10^6 cells it raised the peak memory above 6 GiB).
     """
 
     def __init__(self, A):
@@ -117,39 +117,30 @@ class _CvxoptAnalysis:
         self.lower = np.flatnonzero(A.indices >= cols)  # CSC order, rows sorted: CVXOPT's own order of them
         self.matrix = cvxopt.spmatrix(A.data[self.lower], A.indices[self.lower].astype(int),
                                       cols[self.lower].astype(int), A.shape)
-        cholmod.options["supernodal"] = 2  # always supernodal (BLAS on dense blocks)
-        self.symbolic = cholmod.symbolic(self.matrix, uplo="L")
-        self._factor = None  # a weak reference to the factorisation it holds
-
-    @property
-    def busy(self):
-        """Whether the factorisation made in it is still in use."""
-        return self._factor is not None and self._factor() is not None
 
     def fits(self, A):
-        """Whether ``A`` (canonical CSC) has this analysis's pattern."""
+        """Whether ``A`` (canonical CSC) has this pattern."""
         return np.array_equal(A.indptr, self.indptr) and np.array_equal(A.indices, self.indices)
 
     def factorise(self, A):
-        """The numeric factorisation of ``A`` (this pattern); ``ArithmeticError`` when it is not positive definite."""
+        """The Cholesky factorisation of ``A`` (this pattern); ``ArithmeticError`` when it is not positive definite."""
         self.matrix.V = self._cvxopt.matrix(np.ascontiguousarray(A.data[self.lower]))
-        self._cholmod.numeric(self.matrix, self.symbolic)
-        factor = _CvxoptFactor(self)
-        self._factor = weakref.ref(factor)
-        return factor
+        self._cholmod.options["supernodal"] = 2  # always supernodal (BLAS on dense blocks)
+        factor = self._cholmod.symbolic(self.matrix, uplo="L")
+        self._cholmod.numeric(self.matrix, factor)
+        return _CvxoptFactor(self._cvxopt, self._cholmod, factor)
 
 
 class _CvxoptFactor:
-    """The numeric factorisation held by a :class:`_CvxoptAnalysis`, with the ``solve`` of SciPy's SuperLU."""
+    """A Cholesky factorisation by CVXOPT's CHOLMOD, with the ``solve`` of SciPy's SuperLU."""
 
-    def __init__(self, analysis):
-        self._analysis = analysis
+    def __init__(self, cvxopt, cholmod, factor):
+        self._cvxopt, self._cholmod, self._factor = cvxopt, cholmod, factor
 
     def solve(self, b):
-        a = self._analysis
         b = np.asarray(b, float)
-        x = a._cvxopt.matrix(np.asfortranarray(b).reshape(b.shape[0], -1, order="F"))
-        a._cholmod.solve(a.symbolic, x)
+        x = self._cvxopt.matrix(np.asfortranarray(b).reshape(b.shape[0], -1, order="F"))
+        self._cholmod.solve(self._factor, x)
         return np.array(x).reshape(b.shape)
 
 
@@ -176,13 +167,10 @@ def factorise(A, backend=None):
 class Factoriser:
     """Factorisations of a sequence of symmetric positive definite matrices that share a pattern.
 
-    With CVXOPT's CHOLMOD the pattern is analysed (ordering, symbolic factorisation) at the
-    first matrix and kept: each later call makes the numeric factorisation alone (on the
-    10^5-cell corrugation's coarse matrix, 20 ms of analysis once, 54 ms a factorisation).
-    An analysis holds one numeric factorisation at a time, so while an earlier factor is
-    still in use a new call analyses the pattern again (a Newton step lets the last
-    step's factor go before it makes its own: one analysis). A matrix of another pattern is
-    analysed anew and the analyses of the old one are dropped once free. The other
+    With CVXOPT's CHOLMOD the pattern's lower triangle and CVXOPT's sparse matrix on it are
+    made at the first matrix and kept (24 ms on the 10^5-cell corrugation's coarse matrix);
+    each call then makes CHOLMOD's analysis and numeric factorisation (20 + 54 ms there,
+    against SuperLU's 0.35 s). A matrix of another pattern replaces the kept one. The other
     backends factorise every matrix from scratch.
 
     Parameters
@@ -193,21 +181,10 @@ class Factoriser:
 
     def __init__(self, backend=None):
         self.backend = factor_backend() if backend is None else _chosen("backend", backend)
-        self._analyses = []
-
-    def _analysis(self, A, keep):
-        """A free analysis of ``A``'s pattern (canonical CSC): a kept one, else a new one (kept with ``keep``)."""
-        self._analyses = [a for a in self._analyses if a.busy or a.fits(A)]
-        for a in self._analyses:
-            if not a.busy and a.fits(A):
-                return a
-        a = _CvxoptAnalysis(A)
-        if keep:
-            self._analyses.append(a)
-        return a
+        self._pattern = None
 
     def __call__(self, A, keep=True):
-        """Factorise ``A`` (see :func:`factorise`); ``keep=False`` does not keep its analysis."""
+        """Factorise ``A`` (see :func:`factorise`); ``keep=False`` does not keep its pattern."""
         if self.backend == "superlu":
             return _superlu(A)
         try:
@@ -219,7 +196,12 @@ class Factoriser:
                 except CholmodError as exc:
                     raise ArithmeticError(str(exc)) from exc
             A = _canonical(A)
-            return self._analysis(A, keep).factorise(A)
+            pattern = self._pattern
+            if pattern is None or not pattern.fits(A):
+                pattern = _CvxoptPattern(A)
+                if keep:
+                    self._pattern = pattern
+            return pattern.factorise(A)
         except ArithmeticError as exc:
             log.info("CHOLMOD found the matrix not positive definite (%s); using SuperLU", exc)
             return _superlu(A)

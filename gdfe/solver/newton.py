@@ -611,8 +611,8 @@ class ReducedHessian:
 
     @functools.cached_property
     def _coarse_factoriser(self):
-        """The coarse matrices' :class:`~gdfe.solver.linalg.Factoriser`: one pattern at every step, analysed once
-        (with the contact barrier's Hessian added the pattern changes, and is analysed anew)."""
+        """The coarse matrices' :class:`~gdfe.solver.linalg.Factoriser`: one pattern at every step, its form kept
+        (with the contact barrier's Hessian added the pattern changes, and is made anew)."""
         return Factoriser()
 
     def coarse_factor(self, lin, rest, mu, extra=None, V=None):
