@@ -247,17 +247,10 @@ def _hinges(cfg):
 
 # -- 2-4. sheets, lower bound, factorisations (one child process per size) ---------------------
 def _factor_candidates():
-    names = ["superlu"]
-    try:
-        import sksparse.cholmod  # noqa: F401
-        names.append("cholmod")
-    except ImportError:
-        pass
-    try:
-        import cvxopt.cholmod  # noqa: F401
-        names.append("cvxopt")
-    except ImportError:
-        pass
+    """The solver's factorisation backends installed here (:func:`gdfe.solver.linalg.installed_backends`), and cholespy."""
+    from gdfe.solver.linalg import installed_backends
+
+    names = list(reversed(installed_backends()))  # SuperLU first
     try:
         import cholespy  # noqa: F401
         names.append("cholespy")

@@ -50,3 +50,11 @@ def test_a_bug_in_the_progress_display_is_printed_not_hidden(capsys, monkeypatch
         logging.getLogger("gdfe.solver.newton").debug("newton %d: residual %.3e, error estimate %.3e", 1, 0.1, 0.1)
     err = capsys.readouterr().err
     assert "ZeroDivisionError: a bug in the display" in err
+
+
+def test_a_fold_of_round_off_size_is_printed_as_zero():
+    """gdfe.cli._common.shown: a printed value rounded to its digits, a negative zero made 0 (R = 1: nothing folds)."""
+    from gdfe.cli._common import shown
+
+    assert f"{shown(-1e-14, 4):.4f}" == "0.0000" and f"{shown(-1e-14, 4):+.4f}" == "+0.0000"
+    assert f"{shown(-0.00006, 4):.4f}" == "-0.0001" and shown(1.23456, 2) == 1.23

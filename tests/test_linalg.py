@@ -8,11 +8,12 @@ import scipy.sparse as sp
 
 import gdfe
 from gdfe.solver import Solver
-from gdfe.solver.linalg import FACTOR_BACKENDS, Factoriser, factor_backend, factorise
+from gdfe.solver.linalg import FACTOR_BACKENDS, Factoriser, factor_backend, factorise, installed_backends
 from studies.bench import mask_sheet
 
 
-def _installed():
+def _importable():
+    """The backends whose modules import here, found apart from gdfe.solver.linalg's own test."""
     out = ["superlu"]
     for backend, module in (("cholmod", "sksparse.cholmod"), ("cvxopt", "cvxopt.cholmod")):
         try:
@@ -31,7 +32,7 @@ def _spd(n=300, seed=0):
 
 @pytest.mark.parametrize("backend", FACTOR_BACKENDS)
 def test_every_backend_solves_vectors_and_blocks(backend):
-    if backend not in _installed():
+    if backend not in _importable():
         pytest.skip(f"{backend} is not installed")
     A = Solver(gdfe.from_masks(*mask_sheet(400), 0.1, 0.7, nz=1)).L_ff
     b = np.random.default_rng(1).standard_normal((A.shape[0], 3))
@@ -46,13 +47,15 @@ def test_every_backend_solves_vectors_and_blocks(backend):
 
 def test_the_default_is_the_first_installed_and_the_environment_forces_one(monkeypatch):
     monkeypatch.delenv("GDFE_FACTOR", raising=False)
-    assert factor_backend() == next(b for b in FACTOR_BACKENDS if b in _installed())
+    assert factor_backend() == next(b for b in FACTOR_BACKENDS if b in _importable())
+    assert installed_backends() == [b for b in FACTOR_BACKENDS if b in _importable()]
     monkeypatch.setenv("GDFE_FACTOR", "superlu")
     assert factor_backend() == "superlu" and Factoriser().backend == "superlu"
 
 
 def test_a_factoriser_keeps_its_pattern_and_every_factor_stays_its_own():
-    pytest.importorskip("cvxopt.cholmod")
+    cholmod = pytest.importorskip("cvxopt.cholmod")
+    options = dict(cholmod.options)
     A = _spd()
     fac = Factoriser("cvxopt")
     b = np.random.default_rng(2).standard_normal(A.shape[0])
@@ -66,6 +69,7 @@ def test_a_factoriser_keeps_its_pattern_and_every_factor_stays_its_own():
     assert fac._pattern is pattern
     np.testing.assert_allclose(second.solve(b), 0.5 * x1, rtol=1e-10, atol=0)
     np.testing.assert_allclose(first.solve(b), x1, rtol=1e-12, atol=0)  # unchanged by the second
+    assert dict(cholmod.options) == options  # CVXOPT's options, shared by the process, given back
     C = _spd(seed=5)  # another pattern: made anew
     np.testing.assert_allclose(C @ fac(C).solve(b), b, rtol=0, atol=1e-10 * np.abs(b).max())
     assert fac._pattern is not pattern
@@ -78,7 +82,7 @@ def test_a_factoriser_keeps_its_pattern_and_every_factor_stays_its_own():
 
 @pytest.mark.parametrize("backend", ["cholmod", "cvxopt"])
 def test_cholmod_falls_back_to_superlu_on_an_indefinite_matrix(backend, caplog):
-    if backend not in _installed():
+    if backend not in _importable():
         pytest.skip(f"{backend} is not installed")
     A = _spd()
     A = (A - 1.5 * A.shape[0] * sp.eye(A.shape[0])).tocsc()  # indefinite, nonsingular
@@ -92,7 +96,7 @@ def test_cholmod_falls_back_to_superlu_on_an_indefinite_matrix(backend, caplog):
 def test_the_newton_cg_answer_does_not_depend_on_the_backend(monkeypatch):
     des = gdfe.from_masks(*mask_sheet(900), 0.1, 0.7, nz=1)
     answers = {}
-    for backend in _installed():
+    for backend in _importable():
         monkeypatch.setenv("GDFE_FACTOR", backend)
         res = gdfe.simulate(des, method="newton-cg", tol=1e-9).check()
         answers[backend] = res
@@ -106,7 +110,7 @@ def test_the_newton_cg_answer_does_not_depend_on_the_backend(monkeypatch):
 def test_a_backend_that_is_not_installed_is_refused_with_what_it_needs(monkeypatch):
     from gdfe._validation import GdfeError
 
-    missing = [b for b in FACTOR_BACKENDS if b not in _installed()]
+    missing = [b for b in FACTOR_BACKENDS if b not in _importable()]
     if not missing:
         pytest.skip("every backend is installed")
     with pytest.raises(GdfeError, match=f"backend: the '{missing[0]}' factorisation needs"):

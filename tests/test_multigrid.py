@@ -147,3 +147,5 @@ def test_solve_from_a_guess_meets_the_same_test_in_fewer_cycles():
     cycles.append(0)
     one = mg.solve(b[:, 0], x0=near[:, 0])  # a vector and its guess
     assert one.shape == (len(s.free),) and cycles[2] <= 0.6 * cycles[0]
+    with pytest.raises(ValueError, match=r"x0: expected the shape of b"):
+        mg.solve(b, x0=near.T)

@@ -13,7 +13,8 @@ from pathlib import Path
 
 from gdfe import paper
 from gdfe._validation import check_int, check_length, check_number
-from gdfe.cli._common import emit, file_path, json_arg, noting, out_arg, output_folder, scheduler_arg, using_scheduler
+from gdfe.cli._common import (emit, file_path, json_arg, noting, out_arg, output_folder, scheduler_arg, shown,
+                               using_scheduler)
 
 __all__ = ["register"]
 
@@ -146,7 +147,7 @@ def _cmd_hinge(args) -> int:
         f"{'converged' if res.converged else 'NOT CONVERGED'} (residual {res.residual:.1e})",
         *([] if res.converged else [
             f"  NOT CONVERGED: the values below are at {res.load_factor:.3f} of the eigenstrain"]),
-        f"  fold angle   {alpha:.4f} rad",
+        f"  fold angle   {shown(alpha, 4):.4f} rad",
         f"  curvature    {kappa:.4f} 1/mm (kappa L = {kappa * args.length:.4f} rad)",
         f"  Timoshenko   {kT:.4f} 1/mm (kappa L = {kT * args.length:.4f} rad)",
     ])

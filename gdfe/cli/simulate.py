@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from gdfe.cli._common import (contact_text, emit, exit_status, file_path, iterations_text, json_arg, noting, out_arg,
-                               output_folder, process_arg, solve, solver_args, status_word, write_outputs)
+                               output_folder, process_arg, shown, solve, solver_args, status_word, write_outputs)
 from gdfe.cli._progress import progress_mode
 from gdfe.cli._uncertainty import check_uncertainty, run_ensemble, uncertainty_args, write_ensemble
 
@@ -68,7 +68,7 @@ def _measured(res, design):
 
 def _angles_text(summary):
     if "fold_angle_rad" in summary:
-        return f"  fold angle {summary['fold_angle_rad']:.4f} rad\n"
+        return f"  fold angle {shown(summary['fold_angle_rad'], 4):.4f} rad\n"
     rows = summary.get("crease_angles")
     if rows is not None:
         label, key = "crease", "edge"
@@ -76,10 +76,10 @@ def _angles_text(summary):
         rows, label, key = summary.get("panel_angles", []), "panels", "panels"
     if not rows:
         return "  fold angles: none measured (no two rigid panels joined by contracting cells)\n"
-    shown = ", ".join(f"{label} {'-'.join(map(str, r[key])) if isinstance(r[key], list) else r[key]}: "
-                      f"{r['angle_rad']:.4f} rad" for r in rows[:8])
+    listed = ", ".join(f"{label} {'-'.join(map(str, r[key])) if isinstance(r[key], list) else r[key]}: "
+                       f"{shown(r['angle_rad'], 4):.4f} rad" for r in rows[:8])
     more = f" and {len(rows) - 8} more (in result.json)" if len(rows) > 8 else ""
-    return f"  fold angles ({len(rows)}) {shown}{more}\n"
+    return f"  fold angles ({len(rows)}) {listed}{more}\n"
 
 
 def _film_text(design):

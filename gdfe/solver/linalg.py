@@ -32,30 +32,32 @@ import scipy.sparse.linalg as spla
 
 from gdfe._validation import GdfeError, check_choice
 
-__all__ = ["FACTOR_BACKENDS", "factor_backend", "factorise", "Factoriser"]
+__all__ = ["FACTOR_BACKENDS", "factor_backend", "installed_backends", "factorise", "Factoriser"]
 
 log = logging.getLogger(__name__)
 
 #: Sparse factorisations, fastest first where several are installed (see the module docstring).
 FACTOR_BACKENDS = ("cholmod", "cvxopt", "superlu")
-_MODULES = {"cholmod": "sksparse", "cvxopt": "cvxopt"}
-
-
-_EXTRAS = {"cholmod": "scikit-sparse (pip install -e \".[cholmod]\", with SuiteSparse on the system)",
-           "cvxopt": "CVXOPT (pip install -e \".[factor]\")"}
+#: What each backend beyond SciPy needs: its module, and how to install it.
+_NEEDS = {"cholmod": ("sksparse", "scikit-sparse (pip install -e \".[cholmod]\", with SuiteSparse on the system)"),
+          "cvxopt": ("cvxopt", "CVXOPT (pip install -e \".[factor]\")")}
 
 
 def _installed(backend):
-    module = _MODULES.get(backend)
-    return module is None or importlib.util.find_spec(module) is not None
+    return backend not in _NEEDS or importlib.util.find_spec(_NEEDS[backend][0]) is not None
+
+
+def installed_backends():
+    """The backends of :data:`FACTOR_BACKENDS` installed here, in that order (SuperLU always)."""
+    return [b for b in FACTOR_BACKENDS if _installed(b)]
 
 
 def _chosen(name, value):
     """``value`` checked as a backend that is installed here (``name`` says where it came from)."""
     backend = check_choice(name, value, FACTOR_BACKENDS)
     if not _installed(backend):
-        raise GdfeError(f"{name}: the {backend!r} factorisation needs {_EXTRAS[backend]}; "
-                        f"installed here: {', '.join(b for b in FACTOR_BACKENDS if _installed(b))}")
+        raise GdfeError(f"{name}: the {backend!r} factorisation needs {_NEEDS[backend][1]}; "
+                        f"installed here: {', '.join(installed_backends())}")
     return backend
 
 
@@ -65,7 +67,7 @@ def factor_backend():
     forced = os.environ.get("GDFE_FACTOR", "").strip().lower()
     if forced:
         return _chosen("GDFE_FACTOR", forced)
-    return next(b for b in FACTOR_BACKENDS if _installed(b))
+    return installed_backends()[0]
 
 
 class _Cholmod:
@@ -125,8 +127,16 @@ class _CvxoptPattern:
     def factorise(self, A):
         """The Cholesky factorisation of ``A`` (this pattern); ``ArithmeticError`` when it is not positive definite."""
         self.matrix.V = self._cvxopt.matrix(np.ascontiguousarray(A.data[self.lower]))
-        self._cholmod.options["supernodal"] = 2  # always supernodal (BLAS on dense blocks)
-        factor = self._cholmod.symbolic(self.matrix, uplo="L")
+        options = self._cholmod.options  # CVXOPT's, for the whole process: set for this analysis and given back
+        before = options.get("supernodal")
+        options["supernodal"] = 2  # always supernodal (BLAS on dense blocks)
+        try:
+            factor = self._cholmod.symbolic(self.matrix, uplo="L")
+        finally:
+            if before is None:
+                del options["supernodal"]
+            else:
+                options["supernodal"] = before
         self._cholmod.numeric(self.matrix, factor)
         return _CvxoptFactor(self._cvxopt, self._cholmod, factor)
 
@@ -161,7 +171,7 @@ def factorise(A, backend=None):
         Has ``solve(b)`` for ``b`` of shape ``(k,)`` or ``(k, r)``. SuperLU raises
         ``RuntimeError`` when ``A`` is exactly singular.
     """
-    return Factoriser(backend)(A, keep=False)
+    return Factoriser(backend)(A)
 
 
 class Factoriser:
@@ -183,8 +193,8 @@ class Factoriser:
         self.backend = factor_backend() if backend is None else _chosen("backend", backend)
         self._pattern = None
 
-    def __call__(self, A, keep=True):
-        """Factorise ``A`` (see :func:`factorise`); ``keep=False`` does not keep its pattern."""
+    def __call__(self, A):
+        """Factorise ``A`` (see :func:`factorise`)."""
         if self.backend == "superlu":
             return _superlu(A)
         try:
@@ -196,12 +206,9 @@ class Factoriser:
                 except CholmodError as exc:
                     raise ArithmeticError(str(exc)) from exc
             A = _canonical(A)
-            pattern = self._pattern
-            if pattern is None or not pattern.fits(A):
-                pattern = _CvxoptPattern(A)
-                if keep:
-                    self._pattern = pattern
-            return pattern.factorise(A)
+            if self._pattern is None or not self._pattern.fits(A):
+                self._pattern = _CvxoptPattern(A)
+            return self._pattern.factorise(A)
         except ArithmeticError as exc:
             log.info("CHOLMOD found the matrix not positive definite (%s); using SuperLU", exc)
             return _superlu(A)

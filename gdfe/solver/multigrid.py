@@ -242,7 +242,10 @@ class Multigrid:
             X = np.zeros_like(B)
             R = B.copy()
         else:
-            X = np.array(x0, float).reshape(B.shape)
+            x0 = np.asarray(x0, float)
+            if x0.shape != b.shape:
+                raise ValueError(f"x0: expected the shape of b, {b.shape}, got {x0.shape}")
+            X = x0.reshape(B.shape).copy()
             R = B - A @ X
         stop = rtol * np.linalg.norm(B, axis=0)
         Z = self.vcycle(R)
