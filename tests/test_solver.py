@@ -375,6 +375,32 @@ def test_deflated_cg_stops_at_the_preconditioned_norm_of_the_balancing_precondit
     assert norms["deflated"] == pytest.approx(norms["multiplicative"], rel=1e-8)
 
 
+def test_recycled_newton_direction_joins_the_deflated_coarse_space():
+    """With the solution of H x = b among the recycled directions, deflated CG starts at it and
+    stops at once; with another direction it reaches the same solution, its start's residual
+    orthogonal to the grid and to that direction."""
+    import gdfe.solver.newton as nw
+
+    sv, V, o, rest, hs = _plate_newton_system()
+    lin = hs.linearise(o.Q, o.S, rest, floor=1.0)
+    b = np.random.default_rng(6).standard_normal((sv.n, 3))
+    b[sv.pin] = 0.0
+    ops = hs.operator(lin, rest, 1e-6)
+    x, _ = nw.pcg(ops.apply_H, ops.apply_P, b, 1e-12, 500, start=ops.start)
+    exact = hs.operator(lin, rest, 1e-6, recycled=[x])
+    np.testing.assert_allclose(exact.start(b), x, atol=1e-8 * np.abs(x).max())
+    assert nw.pcg(exact.apply_H, exact.apply_P, b, 1e-6, 500, start=exact.start)[1] == 0
+    u = np.random.default_rng(7).standard_normal((sv.n, 3))
+    u[sv.pin] = 0.0
+    other = hs.operator(lin, rest, 1e-6, recycled=[u])
+    x0 = other.start(b)
+    r0 = b - other.apply_H(x0)
+    assert abs(np.sum(u * r0)) <= 1e-9 * np.linalg.norm(u) * np.linalg.norm(b)
+    assert np.abs(hs.coarse.Zt @ r0).max() <= 1e-9 * np.abs(hs.coarse.Zt @ b).max()
+    xu, _ = nw.pcg(other.apply_H, other.apply_P, b, 1e-12, 500, start=other.start)
+    np.testing.assert_allclose(xu, x, atol=1e-6 * np.abs(x).max())
+
+
 def test_linearised_start_falls_back_to_the_direct_solve_when_the_coarse_matrix_is_singular(monkeypatch):
     """A singular coarse matrix (``operator`` returns None) gives the direct start, not a TypeError."""
     from gdfe.solver import linearised
