@@ -3,11 +3,10 @@
 A large sheet can have a soft mode the coarse grid cannot carry: the 10^6-cell corrugation
 settles by bending as a whole across its folds, the panels rigid and the fold lines
 turning, which bilinear fields on a grid ten pixels apart cannot follow without
-stretching the panels. The grid's Galerkin matrix then makes that mode far stiffer than
-it is, CG resolves it only in part before its forcing term stops it, and Newton creeps
-along it: on the 62 500-cell level of that sheet 14 steps in a row pointed the same way
-(successive steps at cosines 0.94-0.999), each 1-2 h long, the energy falling in its
-sixth digit.
+stretching the panels, so the grid's Galerkin matrix makes that mode far stiffer than it
+is and leaves it to CG. Newton creeps along it: on the 62 500-cell level of that sheet 14
+steps in a row pointed the same way (successive steps at cosines 0.94-0.999), each 1-2 h
+long, the energy falling in its sixth digit.
 
 The last Newton direction is a good approximation of such a mode, so it is added to the
 coarse space (Krylov subspace recycling, as in Parks, de Sturler et al., *SIAM J. Sci.
@@ -22,6 +21,13 @@ step. Directions that the grid already holds, or along which the Hessian is not 
 (``S``'s eigenvalues below :data:`SCHUR_DROP` of ``U^T H U``'s), are left out, so the
 coarse matrix stays positive definite and the deflated CG's equivalence with the balancing
 preconditioner holds as for the grid alone.
+
+What it does and does not do, measured: each step then resolves the mode as far as the
+quadratic model reaches, and the creep itself remains (it is the model's reach along a
+curved mode: steps extended 2-8 times along their direction lowered the energy only now and
+then). On that 62 500-cell level, 20 steps either way, ending at residual 0.0096 h against
+0.049 h; the whole 10^6 solve took 572 s against 691 s, its multilevel start 86 s against
+158 s. On the 10^5 sheets the time is the same within the machine's noise.
 """
 
 from __future__ import annotations
