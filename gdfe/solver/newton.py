@@ -973,8 +973,11 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200, forcing="e
     proposed = {}  # the direction last computed (the step taken, or one tried with more damping)
 
     def directions(Q, S, grad, res, extra=None, error=np.inf, target=0.0, V=None):
-        if "x" in proposed:
-            recent.appendleft(proposed.pop("x"))
+        x = proposed.pop("x", None)
+        if recycle and x is not None:  # of unit length: the coarse space takes the newest as it is, without a copy
+            size = np.sqrt(_dot(x, x))
+            if size > 0.0:
+                recent.appendleft(x / size)
         recycled = list(recent)
         lin = hessian.linearise(Q, S, rest, floor=floor)
         rtol = _forcing(cg_rtol, forcing, history, res, target, error)

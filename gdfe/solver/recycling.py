@@ -73,11 +73,15 @@ class AugmentedCoarse:
         Q = _orthonormal(U)
         if not Q:
             return
-        HU = [apply_H(q) for q in Q]
-        C = np.array([[_dot(q, h) for h in HU] for q in Q])
+        C = np.empty((len(Q), len(Q)))
+        B = []
+        for b, q in enumerate(Q):  # one product held at a time (48 MiB each at 10^6 cells)
+            h = apply_H(q)
+            C[:, b] = [_dot(u, h) for u in Q]
+            B.append((Zt @ h).ravel())
+            del h
         C = 0.5 * (C + C.T)
-        B = np.stack([(Zt @ h).ravel() for h in HU], axis=1)
-        del HU
+        B = np.stack(B, axis=1)
         AiB = np.stack([solve(B[:, a]) for a in range(B.shape[1])], axis=1)
         S = C - B.T @ AiB
         lam, vec = np.linalg.eigh(0.5 * (S + S.T))
@@ -113,11 +117,15 @@ def _orthonormal(U):
     """``U`` made orthonormal (modified Gram-Schmidt), without the directions that depend on the others."""
     out = []
     for u in U:
+        size = np.sqrt(_dot(u, u))
+        if not out and abs(size - 1.0) <= 1e-12:  # the first, of unit length already: itself, not a copy
+            out.append(u)
+            continue
         v = np.array(u, float)
-        size = np.sqrt(_dot(v, v))
         for q in out:
             v -= _dot(q, v) * q
         norm = np.sqrt(_dot(v, v))
         if norm > 1e-8 * size:
-            out.append(v / norm)
+            v /= norm
+            out.append(v)
     return out
