@@ -449,10 +449,11 @@ class ReducedHessian:
     #: symmetric operator, so that CG's preconditioner does not change from one iteration to the next).
     coarse_cycles = 3
     #: How many of the last Newton directions ``method="newton-cg"`` adds to the coarse space
-    #: (:mod:`gdfe.solver.recycling`): the soft modes the grid cannot carry. With 2 the 10^6-cell
-    #: corrugation took 572 s against 691 s without (its multilevel start 86 s against 158 s), at
-    #: 10^5 the same time within the machine's noise; 0 turns it off.
-    recycle = 2
+    #: (:mod:`gdfe.solver.recycling`): the soft modes the grid cannot carry. Not the default: with 2
+    #: the 10^6-cell corrugation took 572 s against 691 s, but Newton stalled on the quick
+    #: benchmark's 208-cell Figure 8 dome (200 steps, residual 4e-4 h, where 21 steps converge
+    #: without) and on the contact study's re-solved 14 mm hinge, for reasons not found.
+    recycle = 0
     #: How ``method="newton-cg"`` combines the n x n and coarse corrections
     #: (:data:`TWO_LEVELS`, see :meth:`operator`).
     two_level = "deflated"

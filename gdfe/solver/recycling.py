@@ -10,24 +10,29 @@ long, the energy falling in its sixth digit.
 
 The last Newton direction is a good approximation of such a mode, so it is added to the
 coarse space (Krylov subspace recycling, as in Parks, de Sturler et al., *SIAM J. Sci.
-Comput.* 28, 2006, here for the deflated CG of Tang, Nabben, Vuik and Erlangga): with
-``W = [Z, U]`` the coarse solve is ``W (W^T H W)^{-1} W^T r``, made from the grid's factor
-of ``A = Z^T H Z`` by the Schur complement of its border,
+Comput.* 28, 2006, here for the deflated CG of Tang, Nabben, Vuik and Erlangga): each
+direction is made H-orthogonal to the grid, ``v = u - Z A^{-1} Z^T H u`` with the grid's
+factor of ``A = Z^T H Z``, so that the coarse solve ``W (W^T H W)^{-1} W^T r`` on
+``W = [Z, V]`` is the grid's plus one term per direction (:class:`AugmentedCoarse`), at the
+cost of two Hessian products and one coarse solve per recycled direction and Newton step.
+Directions that the grid already holds, or along which the Hessian is not positive, are left
+out (:data:`SCHUR_DROP`), so the coarse matrix stays positive definite and the deflated CG's
+equivalence with the balancing preconditioner holds as for the grid alone.
 
-    ``S = U^T H U - B^T A^{-1} B``,  ``B = Z^T H U``,
-
-at the cost of one Hessian product and one coarse solve per recycled vector and Newton
-step. Directions that the grid already holds, or along which the Hessian is not positive
-(``S``'s eigenvalues below :data:`SCHUR_DROP` of ``U^T H U``'s), are left out, so the
-coarse matrix stays positive definite and the deflated CG's equivalence with the balancing
-preconditioner holds as for the grid alone.
-
-What it does and does not do, measured: each step then resolves the mode as far as the
-quadratic model reaches, and the creep itself remains (it is the model's reach along a
-curved mode: steps extended 2-8 times along their direction lowered the energy only now and
-then). On that 62 500-cell level, 20 steps either way, ending at residual 0.0096 h against
-0.049 h; the whole 10^6 solve took 572 s against 691 s, its multilevel start 86 s against
-158 s. On the 10^5 sheets the time is the same within the machine's noise.
+What it does and does not do, measured (``ReducedHessian.recycle = 2``): each step then
+resolves the mode as far as the quadratic model reaches, and the creep itself remains (it is
+the model's reach along a curved mode: steps extended 2-8 times along their direction lowered
+the energy only now and then). On that 62 500-cell level, 20 steps either way, ending at
+residual 0.0096 h against 0.049 h; the whole 10^6 solve took 572 s against 691 s, its
+multilevel start 86 s against 158 s. On the 10^5 sheets the time is the same within the
+machine's noise. It is not the default (``ReducedHessian.recycle = 0``): with it Newton
+stalled on the 208-cell Figure 8 dome of the quick benchmark (200 steps, residual 4e-4 h,
+the energy 2e-3 of itself above the minimum 21 steps reach without it). Kept at thresholds
+of 1e-8 to 1e-2 of their energy, the H-orthogonalised directions here stalled there at every
+one; a first form, the Schur complement ``U^T H U - B^T A^{-1} B`` by difference and its
+eigenvectors, stalled at 1e-8 and converged at 1e-3 and 1e-1 (24 and 19 steps). And the contact study's 14 mm hinge,
+moved by 2 um and solved again, fell by 6.9e-5 of its energy instead of coming back. Why is
+not known.
 """
 
 from __future__ import annotations
@@ -36,14 +41,25 @@ import numpy as np
 
 __all__ = ["SCHUR_DROP", "AugmentedCoarse"]
 
-#: A recycled direction (an eigenvector of the Schur complement ``S``) is kept only where its
-#: eigenvalue exceeds this fraction of the largest diagonal entry of ``U^T H U``: below it the
-#: grid holds the direction already to round-off, or the Hessian is not positive along it.
+#: A recycled direction ``u`` is kept only where its part H-orthogonal to the grid (and to the
+#: directions kept before it) holds more than this fraction of its energy ``u^T H u``: below it
+#: the grid holds the direction already, to the accuracy of the grid's solve.
 SCHUR_DROP = 1e-8
 
 
 class AugmentedCoarse:
     """The Galerkin coarse solve on the grid's space ``Z`` and extra directions ``U``.
+
+    Each direction ``u`` is first made H-orthogonal to the grid, ``v = u - Z A^{-1} Z^T H u``,
+    and to the directions kept before it; then ``W = [Z, V]`` spans the grid and the
+    directions, ``W^T H W`` is block diagonal, and the coarse solve is the grid's plus
+    ``sum_i v_i (v_i^T r) / (v_i^T H v_i)``. The energy ``v^T H v`` is computed from a
+    product with ``v`` itself, not as the difference ``u^T H u - B^T A^{-1} B`` of the Schur
+    complement, which loses its digits when ``u`` lies nearly in the grid (on the 208-cell
+    Figure 8 dome, directions kept at 1e-8 of their energy that way stopped Newton at a
+    residual of 4e-4 h after 200 steps). A direction is kept where that energy exceeds
+    :data:`SCHUR_DROP` of ``u^T H u``, so not where the grid holds it already or the Hessian
+    is not positive along it.
 
     Parameters
     ----------
@@ -55,8 +71,7 @@ class AugmentedCoarse:
     apply_H : callable
         The Hessian product on ``(n, 3)`` arrays.
     U : sequence of (n, 3) float arrays
-        The extra directions (zero at the pinned vertex); made orthonormal here, and those the
-        grid already holds or along which the Hessian is not positive are left out.
+        The extra directions (zero at the pinned vertex).
 
     Attributes
     ----------
@@ -66,66 +81,35 @@ class AugmentedCoarse:
 
     def __init__(self, solve, Z, Zt, apply_H, U):
         self.solve, self.Z, self.Zt = solve, Z, Zt
-        self.U = []
-        self.rank = 0
-        if not len(U):
-            return
-        Q = _orthonormal(U)
-        if not Q:
-            return
-        C = np.empty((len(Q), len(Q)))
-        B = []
-        for b, q in enumerate(Q):  # one product held at a time (48 MiB each at 10^6 cells)
-            h = apply_H(q)
-            C[:, b] = [_dot(u, h) for u in Q]
-            B.append((Zt @ h).ravel())
+        self.V, self.inv_energy = [], []
+        # (H v_i)^T u_j for the directions u_j still to come: one product held at a time (48 MiB at 10^6 cells)
+        later = [[] for _ in U]
+        for j, u in enumerate(U):
+            h = apply_H(u)
+            energy = _dot(u, h)
+            if not energy > 0.0:  # the Hessian is not positive along u
+                continue
+            v = u - Z @ solve((Zt @ h).ravel()).reshape(-1, 3)
             del h
-        C = 0.5 * (C + C.T)
-        B = np.stack(B, axis=1)
-        AiB = np.stack([solve(B[:, a]) for a in range(B.shape[1])], axis=1)
-        S = C - B.T @ AiB
-        lam, vec = np.linalg.eigh(0.5 * (S + S.T))
-        keep = lam > SCHUR_DROP * max(float(np.max(np.diag(C))), 0.0)
-        if not keep.any():
-            return
-        vec = vec[:, keep]
-        # W = [Z, Q vec]: in that basis the border's Schur complement is diag(lam), so the directions'
-        # coefficients of a solve are P (Q^T r - AiB^T Z^T r) in the basis Q, P = vec diag(1 / lam) vec^T
-        self.U, self.AiB = Q, AiB
-        self.P = (vec / lam[keep]) @ vec.T
-        self.rank = int(keep.sum())
+            for (w, inv), c in zip(zip(self.V, self.inv_energy), later[j]):
+                v -= (c * inv) * w
+            hv = apply_H(v)
+            e = _dot(v, hv)
+            if e > SCHUR_DROP * energy:
+                self.V.append(v)
+                self.inv_energy.append(1.0 / e)
+                for k in range(j + 1, len(U)):
+                    later[k].append(_dot(hv, U[k]))
+            del hv
+        self.rank = len(self.V)
 
     def __call__(self, r):
         """``W (W^T H W)^{-1} W^T r`` for ``r`` ``(n, 3)``."""
-        rz = (self.Zt @ r).ravel()
-        t = self.solve(rz)
-        if not self.rank:
-            return self.Z @ t.reshape(-1, 3)
-        ru = np.array([_dot(u, r) for u in self.U])
-        c = self.P @ (ru - self.AiB.T @ rz)
-        out = self.Z @ (t - self.AiB @ c).reshape(-1, 3)
-        for y, u in zip(c, self.U):
-            out += y * u
+        out = self.Z @ self.solve((self.Zt @ r).ravel()).reshape(-1, 3)
+        for v, inv in zip(self.V, self.inv_energy):
+            out += (_dot(v, r) * inv) * v
         return out
 
 
 def _dot(a, b):
     return float(np.einsum("ij,ij->", a, b))
-
-
-def _orthonormal(U):
-    """``U`` made orthonormal (modified Gram-Schmidt), without the directions that depend on the others."""
-    out = []
-    for u in U:
-        size = np.sqrt(_dot(u, u))
-        if not out and abs(size - 1.0) <= 1e-12:  # the first, of unit length already: itself, not a copy
-            out.append(u)
-            continue
-        v = np.array(u, float)
-        for q in out:
-            v -= _dot(q, v) * q
-        norm = np.sqrt(_dot(v, v))
-        if norm > 1e-8 * size:
-            v /= norm
-            out.append(v)
-    return out
