@@ -452,7 +452,9 @@ class ReducedHessian:
     #: (:mod:`gdfe.solver.recycling`): the soft modes the grid cannot carry. Not the default: with 2
     #: the 10^6-cell corrugation took 572 s against 691 s, but Newton stalled on the quick
     #: benchmark's 208-cell Figure 8 dome (200 steps, residual 4e-4 h, where 21 steps converge
-    #: without) and on the contact study's re-solved 14 mm hinge, for reasons not found.
+    #: without: from a saddle, CG meets negative curvature at its first iteration and returns its
+    #: start, which the coarse space keeps positive; docs/solver.md) and the contact study's
+    #: re-solved 14 mm hinge fell by 6.9e-5 of its energy.
     recycle = 0
     #: How ``method="newton-cg"`` combines the n x n and coarse corrections
     #: (:data:`TWO_LEVELS`, see :meth:`operator`).

@@ -31,8 +31,12 @@ the energy 2e-3 of itself above the minimum 21 steps reach without it). Kept at 
 of 1e-8 to 1e-2 of their energy, the H-orthogonalised directions here stalled there at every
 one; a first form, the Schur complement ``U^T H U - B^T A^{-1} B`` by difference and its
 eigenvectors, stalled at 1e-8 and converged at 1e-3 and 1e-1 (24 and 19 steps). And the contact study's 14 mm hinge,
-moved by 2 um and solved again, fell by 6.9e-5 of its energy instead of coming back. Why is
-not known.
+moved by 2 um and solved again, fell by 6.9e-5 of its energy instead of coming back. On the
+dome, CG meets negative curvature at its first iteration at a saddle (0.1037995 against the
+minimum's 0.1036096) and returns its start, the coarse solution, which cannot hold that
+direction: steps of 1e-11 h, which the line search takes, so the damping never grows. Without
+recycling the first CG iterations leave a part along it and the shape rolls off the saddle
+(docs/solver.md).
 """
 
 from __future__ import annotations
