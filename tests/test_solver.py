@@ -418,3 +418,29 @@ def test_contraction_ratios_below_one_percent_are_refused():
     with pytest.raises(gdfe.GdfeError, match=r"^R: expected a contraction ratio in \[0\.01, 1\], got 1e-09"):
         gdfe.from_masks(np.zeros((5, 3), bool), np.zeros((5, 3), bool), 0.2, R=1e-9)
     assert gdfe.from_masks(np.zeros((5, 3), bool), np.zeros((5, 3), bool), 0.2, R=0.01).n_cells == 15
+
+
+def test_cg_at_negative_curvature_on_its_first_iteration_returns_the_preconditioned_correction():
+    """At a saddle the start alone is no step: CG meeting negative curvature at once returns
+    ``x0 + P r0`` (a descent direction for a positive preconditioner), later its iterate."""
+    import gdfe.solver.newton as nw
+
+    H = np.diag([1.0, 2.0, -1.0, 3.0, 1.0, 1.0])
+    P = np.diag([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]) + 1e-3 * np.eye(6)  # steers the first direction onto the negative one
+    b = np.array([[1.0, 0.0, 1.0], [0.0, 0.0, 0.0]])
+
+    def apply_H(v):
+        return (H @ v.ravel()).reshape(-1, 3)
+
+    def apply_P(r):
+        return (P @ r.ravel()).reshape(-1, 3)
+    x, k = nw.pcg(apply_H, apply_P, b, 1e-8, 50)
+    assert k == 1
+    np.testing.assert_allclose(x, apply_P(b))
+    assert np.sum(x * b) > 0
+    # from a start: the start plus the correction there
+    start = lambda r: 0.5 * r  # noqa: E731
+    x, k = nw.pcg(apply_H, apply_P, b, 1e-8, 50, start=start)
+    r0 = b - apply_H(0.5 * b)
+    assert k == 1
+    np.testing.assert_allclose(x, 0.5 * b + apply_P(r0))

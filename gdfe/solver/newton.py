@@ -449,13 +449,9 @@ class ReducedHessian:
     #: symmetric operator, so that CG's preconditioner does not change from one iteration to the next).
     coarse_cycles = 3
     #: How many of the last Newton directions ``method="newton-cg"`` adds to the coarse space
-    #: (:mod:`gdfe.solver.recycling`): the soft modes the grid cannot carry. Not the default: with 2
-    #: the 10^6-cell corrugation took 572 s against 691 s, but Newton stalled on the quick
-    #: benchmark's 208-cell Figure 8 dome (200 steps, residual 4e-4 h, where 21 steps converge
-    #: without: from a saddle, CG meets negative curvature at its first iteration and returns its
-    #: start, which the coarse space keeps positive; docs/solver.md) and the contact study's
-    #: re-solved 14 mm hinge fell by 6.9e-5 of its energy.
-    recycle = 0
+    #: (:mod:`gdfe.solver.recycling`): the soft modes the grid cannot carry; none with contact.
+    #: 0 turns it off. Measured in docs/solver.md (recycled Newton directions).
+    recycle = 2
     #: How ``method="newton-cg"`` combines the n x n and coarse corrections
     #: (:data:`TWO_LEVELS`, see :meth:`operator`).
     two_level = "deflated"
@@ -803,6 +799,13 @@ def _dot(a, b):
 def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None, flexible=False):
     """Preconditioned CG; stops at negative curvature.
 
+    At negative curvature CG returns its iterate, or, met at the first iteration, the start plus
+    the preconditioned residual there, ``x0 + P r0`` (Nocedal and Wright's Algorithm 7.1 returns
+    the steepest descent direction there): at a saddle the start alone, a coarse solution that
+    cannot hold the direction of negative curvature, is a step of round-off, which a line search
+    takes and a Newton solve repeats (the 208-cell Figure 8 dome with recycled directions: 200
+    steps of 1e-11 h; with this, 19 steps to the minimum).
+
     ``rhs`` and what ``apply_H`` and ``apply_P`` return are arrays of one module (NumPy or CuPy).
     ``rtol`` is relative to the preconditioned norm ``sqrt(rhs^T P rhs)`` of the right-hand
     side; it may be a function of that norm (a forcing sequence that measures the gradient
@@ -846,6 +849,8 @@ def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None, flexible=False):
         pHp = _dot(p, Hp)
         if not pHp > 0:
             log.debug("CG: negative curvature at iteration %d (p.Hp = %.3e)", k, pHp)
+            if k == 1:  # at the start itself: its preconditioned correction (a saddle is left along it)
+                return x + p, k
             return x, k
         a = rz / pHp
         x += a * p
@@ -975,13 +980,16 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200, forcing="e
     recent = collections.deque(maxlen=recycle)  # the last Newton directions
     proposed = {}  # the direction last computed (the step taken, or one tried with more damping)
 
-    def directions(Q, S, grad, res, extra=None, error=np.inf, target=0.0, V=None):
+    def directions(Q, S, grad, res, extra=None, error=np.inf, target=0.0, V=None, recycle_here=True):
         x = proposed.pop("x", None)
         if recycle and x is not None:  # of unit length: the coarse space takes the newest as it is, without a copy
             size = np.sqrt(_dot(x, x))
             if size > 0.0:
                 recent.appendleft(x / size)
-        recycled = list(recent)
+        # none in a contact solve (recycle_here False): with them the contact study's 14 mm hinge, moved by
+        # 2 um and solved again, fell by 6.9e-5 of its energy (1.5e-3 with them left out only where
+        # pairs are active) instead of coming back
+        recycled = list(recent) if recycle_here else []
         lin = hessian.linearise(Q, S, rest, floor=floor)
         rtol = _forcing(cg_rtol, forcing, history, res, target, error)
         # only a first try may reuse the last factor, and only with the balancing forms: the deflated one
@@ -1015,6 +1023,7 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200, forcing="e
             return x, k
         return step
     directions.wants_shape = True  # a coarse matrix solved by smoothed aggregation takes its near-null space from the iterate
+    directions.recycles = True  # told whether this solve may recycle (not with contact)
     return directions
 
 
@@ -1197,7 +1206,8 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
         a positive semi-definite 3n x 3n matrix added to the Hessian (the contact barrier's),
         ``error`` the estimated distance to the solution and ``target`` the distance the
         stopping test asks for (units of h); one with the attribute ``wants_shape`` True is
-        also given the iterate ``V`` ``(n, 3)`` [mm].
+        also given the iterate ``V`` ``(n, 3)`` [mm], and one with ``recycles`` True is given
+        ``recycle_here``, False in a contact solve (:attr:`ReducedHessian.recycle`).
     alphas : tuple of float
         Step lengths tried, in order; the first that lowers the energy is taken and
         ``mu`` shrinks (a full step) or doubles (a shortened one); when none does, ``mu``
@@ -1268,8 +1278,11 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
     Vp = V[steps.pin].copy()
     extrapolate = not vanishing_damping if extrapolate is None else bool(extrapolate)
 
-    def shape(V):  # the iterate, for a directions function that asks for it (``wants_shape``)
-        return {"V": V} if getattr(directions, "wants_shape", False) else {}
+    def shape(V):  # the iterate, for a directions function that asks for it (``wants_shape``), and whether it may recycle
+        out = {"V": V} if getattr(directions, "wants_shape", False) else {}
+        if getattr(directions, "recycles", False):
+            out["recycle_here"] = contact is None
+        return out
 
     scale = steps.design.h
     o = steps.orient(V, activation)
