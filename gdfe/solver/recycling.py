@@ -19,24 +19,20 @@ Directions that the grid already holds, or along which the Hessian is not positi
 out (:data:`SCHUR_DROP`), so the coarse matrix stays positive definite and the deflated CG's
 equivalence with the balancing preconditioner holds as for the grid alone.
 
-What it does and does not do, measured (``ReducedHessian.recycle = 2``): each step then
-resolves the mode as far as the quadratic model reaches, and the creep itself remains (it is
-the model's reach along a curved mode: steps extended 2-8 times along their direction lowered
-the energy only now and then). On that 62 500-cell level, 20 steps either way, ending at
-residual 0.0096 h against 0.049 h; the whole 10^6 solve took 572 s against 691 s, its
-multilevel start 86 s against 158 s. On the 10^5 sheets the time is the same within the
-machine's noise. It is not the default (``ReducedHessian.recycle = 0``): with it Newton
-stalled on the 208-cell Figure 8 dome of the quick benchmark (200 steps, residual 4e-4 h,
-the energy 2e-3 of itself above the minimum 21 steps reach without it). Kept at thresholds
-of 1e-8 to 1e-2 of their energy, the H-orthogonalised directions here stalled there at every
-one; a first form, the Schur complement ``U^T H U - B^T A^{-1} B`` by difference and its
-eigenvectors, stalled at 1e-8 and converged at 1e-3 and 1e-1 (24 and 19 steps). And the contact study's 14 mm hinge,
-moved by 2 um and solved again, fell by 6.9e-5 of its energy instead of coming back. On the
-dome, CG meets negative curvature at its first iteration at a saddle (0.1037995 against the
-minimum's 0.1036096) and returns its start, the coarse solution, which cannot hold that
-direction: steps of 1e-11 h, which the line search takes, so the damping never grows. Without
-recycling the first CG iterations leave a part along it and the shape rolls off the saddle
-(docs/solver.md).
+What it does and does not do, measured (in a first form, the Schur complement by difference
+and its eigenvectors): each step resolves the mode as far as the quadratic model reaches, and
+the creep itself remains (it is the model's reach along a curved mode: steps extended 2-8
+times along their direction lowered the energy only now and then). On that 62 500-cell level,
+20 steps either way, ending at residual 0.0096 h against 0.049 h; the whole 10^6 solve took
+572 s against 691 s, its multilevel start 86 s against 158 s. On the 10^5 sheets the time is
+the same within the machine's noise.
+
+Two things it needs from the solver (:mod:`gdfe.solver.newton`): CG meeting negative
+curvature at its first iteration returns its start plus the preconditioned correction, not the
+start alone (at a saddle of the 208-cell Figure 8 dome the start, a coarse solution that
+cannot hold the direction of negative curvature, was a step of 1e-11 h, taken 200 times); and
+a contact solve recycles nothing (with recycling there, the contact study's 14 mm hinge, moved
+by 2 um and solved again, fell by 6.9e-5 of its energy instead of coming back).
 """
 
 from __future__ import annotations
