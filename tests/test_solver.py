@@ -421,8 +421,8 @@ def test_contraction_ratios_below_one_percent_are_refused():
 
 
 def test_cg_at_negative_curvature_on_its_first_iteration_returns_the_preconditioned_correction():
-    """At a saddle the start alone is no step: CG meeting negative curvature at once returns
-    ``x0 + P r0`` (a descent direction for a positive preconditioner), later its iterate."""
+    """At a saddle the start alone is no step: with ``leave_saddle`` CG meeting negative curvature at
+    once returns ``x0 + P r0`` (a descent direction for a positive preconditioner); without, the start."""
     import gdfe.solver.newton as nw
 
     H = np.diag([1.0, 2.0, -1.0, 3.0, 1.0, 1.0])
@@ -435,12 +435,14 @@ def test_cg_at_negative_curvature_on_its_first_iteration_returns_the_preconditio
     def apply_P(r):
         return (P @ r.ravel()).reshape(-1, 3)
     x, k = nw.pcg(apply_H, apply_P, b, 1e-8, 50)
+    assert k == 1 and not np.any(x)  # without leave_saddle: the start, zero
+    x, k = nw.pcg(apply_H, apply_P, b, 1e-8, 50, leave_saddle=True)
     assert k == 1
     np.testing.assert_allclose(x, apply_P(b))
     assert np.sum(x * b) > 0
     # from a start: the start plus the correction there
     start = lambda r: 0.5 * r  # noqa: E731
-    x, k = nw.pcg(apply_H, apply_P, b, 1e-8, 50, start=start)
+    x, k = nw.pcg(apply_H, apply_P, b, 1e-8, 50, start=start, leave_saddle=True)
     r0 = b - apply_H(0.5 * b)
     assert k == 1
     np.testing.assert_allclose(x, 0.5 * b + apply_P(r0))

@@ -450,8 +450,10 @@ class ReducedHessian:
     coarse_cycles = 3
     #: How many of the last Newton directions ``method="newton-cg"`` adds to the coarse space
     #: (:mod:`gdfe.solver.recycling`): the soft modes the grid cannot carry; none with contact.
-    #: 0 turns it off. Measured in docs/solver.md (recycled Newton directions).
-    recycle = 2
+    #: Not the default: with 2 the 10^6-cell corrugation took 527 s against 664 s (docs/solver.md),
+    #: but tight solves stopped converging (the stopping test's tight reference: residual 6.5e-8
+    #: after 200 steps), for reasons not yet found.
+    recycle = 0
     #: How ``method="newton-cg"`` combines the n x n and coarse corrections
     #: (:data:`TWO_LEVELS`, see :meth:`operator`).
     two_level = "deflated"
@@ -796,15 +798,16 @@ def _dot(a, b):
     return float((a * b).sum())
 
 
-def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None, flexible=False):
+def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None, flexible=False, leave_saddle=False):
     """Preconditioned CG; stops at negative curvature.
 
-    At negative curvature CG returns its iterate, or, met at the first iteration, the start plus
-    the preconditioned residual there, ``x0 + P r0`` (Nocedal and Wright's Algorithm 7.1 returns
-    the steepest descent direction there): at a saddle the start alone, a coarse solution that
-    cannot hold the direction of negative curvature, is a step of round-off, which a line search
-    takes and a Newton solve repeats (the 208-cell Figure 8 dome with recycled directions: 200
-    steps of 1e-11 h; with this, 19 steps to the minimum).
+    At negative curvature CG returns its iterate; with ``leave_saddle``, met at the first
+    iteration, the start plus the preconditioned residual there, ``x0 + P r0`` (Nocedal and
+    Wright's Algorithm 7.1 returns the steepest descent direction there). Newton-CG asks for it
+    where it recycles directions (:attr:`ReducedHessian.recycle`): at a saddle the start alone,
+    a coarse solution that cannot hold the direction of negative curvature, is a step of
+    round-off, which a line search takes and a Newton solve repeats (the 208-cell Figure 8 dome:
+    200 steps of 1e-11 h; with it, 19 steps to the minimum).
 
     ``rhs`` and what ``apply_H`` and ``apply_P`` return are arrays of one module (NumPy or CuPy).
     ``rtol`` is relative to the preconditioned norm ``sqrt(rhs^T P rhs)`` of the right-hand
@@ -849,7 +852,7 @@ def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None, flexible=False):
         pHp = _dot(p, Hp)
         if not pHp > 0:
             log.debug("CG: negative curvature at iteration %d (p.Hp = %.3e)", k, pHp)
-            if k == 1:  # at the start itself: its preconditioned correction (a saddle is left along it)
+            if k == 1 and leave_saddle:  # at the start itself: its preconditioned correction
                 return x + p, k
             return x, k
         a = rz / pHp
@@ -1017,7 +1020,8 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200, forcing="e
             if J is None:
                 J = hessian.jacobian(lin, rest)
             ops = hessian.operator(lin, rest, mu, extra, coarse_factor=fc, J=J, recycled=recycled)
-            x, k = pcg(ops.apply_H, ops.apply_P, -grad, rtol, cg_max, start=ops.start, flexible=ops.flexible)
+            x, k = pcg(ops.apply_H, ops.apply_P, -grad, rtol, cg_max, start=ops.start, flexible=ops.flexible,
+                       leave_saddle=bool(recycled))
             proposed["x"] = x
             log.debug("CG: %d iterations to %.1e", k, history["eta"] if callable(rtol) else rtol)
             return x, k

@@ -27,6 +27,10 @@ times along their direction lowered the energy only now and then). On that 62 50
 572 s against 691 s, its multilevel start 86 s against 158 s. On the 10^5 sheets the time is
 the same within the machine's noise.
 
+It is not the default (``ReducedHessian.recycle = 0``): with it, tight solves stopped
+converging (the stopping test's tight reference solve: residual 6.5e-8 after 200 steps), for
+reasons not yet found.
+
 Two things it needs from the solver (:mod:`gdfe.solver.newton`): CG meeting negative
 curvature at its first iteration returns its start plus the preconditioned correction, not the
 start alone (at a saddle of the 208-cell Figure 8 dome the start, a coarse solution that
