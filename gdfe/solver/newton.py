@@ -985,10 +985,8 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200, forcing="e
 
     def directions(Q, S, grad, res, extra=None, error=np.inf, target=0.0, V=None, recycle_here=True):
         x = proposed.pop("x", None)
-        if recycle and x is not None:  # of unit length: the coarse space takes the newest as it is, without a copy
-            size = np.sqrt(_dot(x, x))
-            if size > 0.0:
-                recent.appendleft(x / size)
+        if x is not None:  # the step's own array, which solve_newton does not change in place
+            recent.appendleft(x)
         # none in a contact solve (recycle_here False): with them the contact study's 14 mm hinge, moved by
         # 2 um and solved again, fell by 6.9e-5 of its energy (1.5e-3 with them left out only where
         # pairs are active) instead of coming back
@@ -1022,7 +1020,8 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200, forcing="e
             ops = hessian.operator(lin, rest, mu, extra, coarse_factor=fc, J=J, recycled=recycled)
             x, k = pcg(ops.apply_H, ops.apply_P, -grad, rtol, cg_max, start=ops.start, flexible=ops.flexible,
                        leave_saddle=bool(recycled))
-            proposed["x"] = x
+            if recycle:
+                proposed["x"] = x
             log.debug("CG: %d iterations to %.1e", k, history["eta"] if callable(rtol) else rtol)
             return x, k
         return step

@@ -16,7 +16,7 @@ factor of ``A = Z^T H Z``, so that the coarse solve ``W (W^T H W)^{-1} W^T r`` o
 ``W = [Z, V]`` is the grid's plus one term per direction (:class:`AugmentedCoarse`), at the
 cost of two Hessian products and one coarse solve per recycled direction and Newton step.
 Directions that the grid already holds, or along which the Hessian is not positive, are left
-out (:data:`SCHUR_DROP`), so the coarse matrix stays positive definite and the deflated CG's
+out (:data:`DIRECTION_DROP`), so the coarse matrix stays positive definite and the deflated CG's
 equivalence with the balancing preconditioner holds as for the grid alone.
 
 What it does and does not do, measured (in a first form, the Schur complement by difference
@@ -43,12 +43,12 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["SCHUR_DROP", "AugmentedCoarse"]
+__all__ = ["DIRECTION_DROP", "AugmentedCoarse"]
 
 #: A recycled direction ``u`` is kept only where its part H-orthogonal to the grid (and to the
 #: directions kept before it) holds more than this fraction of its energy ``u^T H u``: below it
 #: the grid holds the direction already, to the accuracy of the grid's solve.
-SCHUR_DROP = 1e-8
+DIRECTION_DROP = 1e-8
 
 
 class AugmentedCoarse:
@@ -62,7 +62,7 @@ class AugmentedCoarse:
     complement, which loses its digits when ``u`` lies nearly in the grid (on the 208-cell
     Figure 8 dome, directions kept at 1e-8 of their energy that way stopped Newton at a
     residual of 4e-4 h after 200 steps). A direction is kept where that energy exceeds
-    :data:`SCHUR_DROP` of ``u^T H u``, so not where the grid holds it already or the Hessian
+    :data:`DIRECTION_DROP` of ``u^T H u``, so not where the grid holds it already or the Hessian
     is not positive along it.
 
     Parameters
@@ -99,7 +99,7 @@ class AugmentedCoarse:
                 v -= (c * inv) * w
             hv = apply_H(v)
             e = _dot(v, hv)
-            if e > SCHUR_DROP * energy:
+            if e > DIRECTION_DROP * energy:
                 self.V.append(v)
                 self.inv_energy.append(1.0 / e)
                 for k in range(j + 1, len(U)):
