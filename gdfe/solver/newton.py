@@ -28,7 +28,7 @@ from gdfe._validation import GdfeError, check_choice, check_int
 from gdfe.solver.energy import SolveStats
 from gdfe.solver.linalg import Factoriser, factorise
 from gdfe.solver.multigrid import lattice
-from gdfe.solver.recycling import AugmentedCoarse
+from gdfe.solver.recycling import AugmentedCoarse, without_turn
 from gdfe.solver.threads import in_order, ranges, side_by_side
 
 __all__ = ["MU_MIN", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "CONTACT_ALPHAS", "CONTACT_EXACT_RES", "DRIFT_WINDOW",
@@ -450,10 +450,9 @@ class ReducedHessian:
     coarse_cycles = 3
     #: How many of the last Newton directions ``method="newton-cg"`` adds to the coarse space
     #: (:mod:`gdfe.solver.recycling`): the soft modes the grid cannot carry; none with contact.
-    #: Not the default: with 2 the 10^6-cell corrugation took 527 s against 664 s (docs/solver.md),
-    #: but tight solves stopped converging (the stopping test's tight reference: residual 6.5e-8
-    #: after 200 steps), for reasons not yet found.
-    recycle = 0
+    #: Each is recycled less its turn about the pinned vertex (:func:`gdfe.solver.recycling.without_turn`),
+    #: without which tight solves never stopped; 0 turns recycling off (docs/solver.md).
+    recycle = 2
     #: How ``method="newton-cg"`` combines the n x n and coarse corrections
     #: (:data:`TWO_LEVELS`, see :meth:`operator`).
     two_level = "deflated"
@@ -990,7 +989,7 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200, forcing="e
         # none in a contact solve (recycle_here False): with them the contact study's 14 mm hinge, moved by
         # 2 um and solved again, fell by 6.9e-5 of its energy (1.5e-3 with them left out only where
         # pairs are active) instead of coming back
-        recycled = list(recent) if recycle_here else []
+        recycled = [without_turn(u, V, hessian.steps.pin) for u in recent] if recycle_here else []
         lin = hessian.linearise(Q, S, rest, floor=floor)
         rtol = _forcing(cg_rtol, forcing, history, res, target, error)
         # only a first try may reuse the last factor, and only with the balancing forms: the deflated one
