@@ -28,7 +28,7 @@ from gdfe._validation import GdfeError, check_choice, check_int
 from gdfe.solver.energy import SolveStats
 from gdfe.solver.linalg import Factoriser, factorise
 from gdfe.solver.multigrid import lattice
-from gdfe.solver.recycling import AugmentedCoarse, without_turn
+from gdfe.solver.recycling import AugmentedCoarse, mostly_turn
 from gdfe.solver.threads import in_order, ranges, side_by_side
 
 __all__ = ["MU_MIN", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "CONTACT_ALPHAS", "CONTACT_EXACT_RES", "DRIFT_WINDOW",
@@ -450,8 +450,9 @@ class ReducedHessian:
     coarse_cycles = 3
     #: How many of the last Newton directions ``method="newton-cg"`` adds to the coarse space
     #: (:mod:`gdfe.solver.recycling`): the soft modes the grid cannot carry; none with contact.
-    #: Each is recycled less its turn about the pinned vertex (:func:`gdfe.solver.recycling.without_turn`),
-    #: without which tight solves never stopped; 0 turns recycling off (docs/solver.md).
+    #: A direction that is nearly all a turn about the pinned vertex is not recycled
+    #: (:func:`gdfe.solver.recycling.mostly_turn`): kept, tight solves never stopped. 0 turns recycling
+    #: off (docs/solver.md).
     recycle = 2
     #: How ``method="newton-cg"`` combines the n x n and coarse corrections
     #: (:data:`TWO_LEVELS`, see :meth:`operator`).
@@ -984,12 +985,14 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200, forcing="e
 
     def directions(Q, S, grad, res, extra=None, error=np.inf, target=0.0, V=None, recycle_here=True):
         x = proposed.pop("x", None)
-        if x is not None:  # the step's own array, which solve_newton does not change in place
+        # the step's own array, which solve_newton does not change in place; not one made by round-off
+        # that is all but a turn of the whole part (near the solution: tight solves then never stopped)
+        if x is not None and not mostly_turn(x, V, hessian.steps.pin):
             recent.appendleft(x)
         # none in a contact solve (recycle_here False): with them the contact study's 14 mm hinge, moved by
         # 2 um and solved again, fell by 6.9e-5 of its energy (1.5e-3 with them left out only where
         # pairs are active) instead of coming back
-        recycled = [without_turn(u, V, hessian.steps.pin) for u in recent] if recycle_here else []
+        recycled = list(recent) if recycle_here else []
         lin = hessian.linearise(Q, S, rest, floor=floor)
         rtol = _forcing(cg_rtol, forcing, history, res, target, error)
         # only a first try may reuse the last factor, and only with the balancing forms: the deflated one
