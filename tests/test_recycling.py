@@ -3,7 +3,8 @@
 import numpy as np
 import scipy.sparse as sp
 
-from gdfe.solver.recycling import TURN_SHARE, AugmentedCoarse, mostly_turn, without_turn
+from gdfe.solver.recycling import TURN_SHARE, AugmentedCoarse, mostly_turn
+from gdfe.solver.rigid import without_turn
 
 
 def _problem(n=30, k=6, seed=0):

@@ -29,6 +29,7 @@ from gdfe.solver.energy import SolveStats
 from gdfe.solver.linalg import Factoriser, factorise
 from gdfe.solver.multigrid import lattice
 from gdfe.solver.recycling import AugmentedCoarse, mostly_turn
+from gdfe.solver.rigid import turn_fit
 from gdfe.solver.threads import in_order, ranges, side_by_side
 
 __all__ = ["MU_MIN", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "CONTACT_ALPHAS", "CONTACT_EXACT_RES", "DRIFT_WINDOW",
@@ -1116,12 +1117,8 @@ def deformation(step, V):
     """
     r = V - V.mean(axis=0)
     d = step - step.mean(axis=0)
-    M = np.einsum("ij,ij->", r, r) * np.eye(3) - np.einsum("ij,ik->jk", r, r)
-    try:
-        omega = np.linalg.solve(M, np.cross(r, d).sum(axis=0))
-    except np.linalg.LinAlgError:  # all points on a line: no rotation to remove
-        return d
-    return d - np.cross(omega, r)
+    omega = turn_fit(r, d)
+    return d if omega is None else d - np.cross(omega, r)  # None: all points on a line, no turn to remove
 
 
 def _next_damping(mu, full, fast, res, vanishing_damping, contact=False):

@@ -45,7 +45,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["DIRECTION_DROP", "TURN_SHARE", "AugmentedCoarse", "mostly_turn", "without_turn"]
+from gdfe.solver.rigid import without_turn
+
+__all__ = ["DIRECTION_DROP", "TURN_SHARE", "AugmentedCoarse", "mostly_turn"]
 
 #: A recycled direction ``u`` is kept only where its part H-orthogonal to the grid (and to the
 #: directions kept before it) holds more than this fraction of its energy ``u^T H u``: below it
@@ -119,17 +121,6 @@ class AugmentedCoarse:
         for v, inv in zip(self.V, self.inv_energy):
             out += (_dot(v, r) * inv) * v
         return out
-
-
-def without_turn(u, V, pin):
-    """``u`` ``(n, 3)`` less its best-fit infinitesimal turn about the pinned vertex of ``V`` (zero at ``pin``, as ``u``)."""
-    r = V - V[pin]
-    M = np.einsum("ij,ij->", r, r) * np.eye(3) - np.einsum("ij,ik->jk", r, r)
-    try:
-        omega = np.linalg.solve(M, np.cross(r, u).sum(axis=0))
-    except np.linalg.LinAlgError:  # all points on a line through the pin: no turn to remove
-        return u
-    return u - np.cross(omega, r)
 
 
 def mostly_turn(u, V, pin):
