@@ -1023,7 +1023,7 @@ def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200, forcing="e
             ops = hessian.operator(lin, rest, mu, extra, coarse_factor=fc, J=J, recycled=recycled)
             x, k = pcg(ops.apply_H, ops.apply_P, -grad, rtol, cg_max, start=ops.start, flexible=ops.flexible,
                        leave_saddle=bool(recycled))
-            if recycle:
+            if recycle and recycle_here:  # a contact solve recycles nothing, so holds no direction either
                 proposed["x"] = x
             log.debug("CG: %d iterations to %.1e", k, history["eta"] if callable(rtol) else rtol)
             return x, k
