@@ -99,11 +99,8 @@ def test_newton_cg_with_and_without_recycling_reaches_one_shape(monkeypatch):
         assert res.converged
         out[recycle] = res
     assert abs(out[2].energy - out[0].energy) <= 1e-10 * out[0].energy
-    A, B = out[0].points, out[2].points
-    a, b = A - A.mean(0), B - B.mean(0)
-    U, _, Vt = np.linalg.svd(b.T @ a)
-    R = U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))]) @ Vt
-    assert np.abs(b @ R - a).max() <= STEP_TOL_FACTOR * out[0].tol * des.h  # the stopping test's distance
+    # the stopping test's distance, after a rigid alignment
+    assert gdfe.shape_distance(out[0].points, out[2].points)["max"] <= STEP_TOL_FACTOR * out[0].tol * des.h
 
 
 def test_a_turn_about_the_pinned_vertex_is_taken_out_of_a_direction():
@@ -130,8 +127,9 @@ def test_a_direction_that_is_nearly_all_a_turn_is_told_apart():
     V = rng.standard_normal((40, 3))
     pin = 3
     turn = np.cross([0.5, 1.0, -2.0], V - V[pin])
-    bend = without_turn(rng.standard_normal((40, 3)), V, pin)
+    bend = rng.standard_normal((40, 3))
     bend[pin] = 0.0
+    bend = without_turn(bend, V, pin)
     bend *= np.linalg.norm(turn) / np.linalg.norm(bend)  # as long as the turn, and none of it a turn
     assert mostly_turn(turn, V, pin)
     assert mostly_turn(turn + 0.5 * TURN_SHARE * bend, V, pin)
@@ -145,17 +143,22 @@ def test_a_tight_solve_with_recycling_stops(monkeypatch):
     that turned the part by 1e-4 mm, each followed by half of it back, and no stop after 200 steps
     (60 here). Such a direction is no longer recycled, and the tight solve stops."""
     import gdfe
-    from gdfe.solver.newton import ReducedHessian
+    from gdfe.solver.newton import STEP_TOL_FACTOR, ReducedHessian
     from studies.bench import mask_sheet
 
     des = gdfe.from_masks(*mask_sheet(900), 0.1, 0.7, nz=1)
-    steps = {}
+    out = {}
     for recycle in (0, 2):
         monkeypatch.setattr(ReducedHessian, "recycle", recycle)
         res = gdfe.simulate(des, tol=1e-10, max_iter=30, contact="off")
         assert res.converged, recycle
-        steps[recycle] = res.iterations
-    assert steps[2] <= 2 * steps[0]
+        out[recycle] = res
+    # measured: 10 steps with recycling, 9 without; twice is the margin, far below the stall's 60+
+    assert out[2].iterations <= 2 * out[0].iterations
+    # and the answer of the tight solve without recycling, to its own stopping distance after a rigid turn
+    # (the energy is second order in the distance to its minimum: equal to round-off, measured 2e-15)
+    assert abs(out[2].energy - out[0].energy) <= 1e-12 * out[0].energy
+    assert gdfe.shape_distance(out[2].points, out[0].points)["max"] <= STEP_TOL_FACTOR * 1e-10 * des.h
 
 
 def test_a_bad_recycle_count_is_refused(monkeypatch):

@@ -84,11 +84,6 @@ class AugmentedCoarse:
         The Hessian product on ``(n, 3)`` arrays.
     U : sequence of (n, 3) float arrays
         The extra directions (zero at the pinned vertex).
-
-    Attributes
-    ----------
-    rank : int
-        How many directions were kept.
     """
 
     def __init__(self, solve, Z, Zt, apply_H, U):
@@ -113,7 +108,11 @@ class AugmentedCoarse:
                 for k in range(j + 1, len(U)):
                     later[k].append(_dot(hv, U[k]))
             del hv
-        self.rank = len(self.V)
+
+    @property
+    def rank(self) -> int:
+        """How many directions were kept."""
+        return len(self.V)
 
     def __call__(self, r):
         """``W (W^T H W)^{-1} W^T r`` for ``r`` ``(n, 3)``."""
