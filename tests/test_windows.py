@@ -153,6 +153,14 @@ def test_the_9mm_hinge_overlap_is_found_as_without_windows(monkeypatch):
     assert p == _without_windows(monkeypatch, check, res.points)
 
 
+def test_a_check_with_every_triangle_proved_apart_finds_nothing(monkeypatch):
+    """No triangle left to the crossing test (none involved): an answer, not an empty concatenation."""
+    des = gdfe.from_rows(["R" * 8] * 8, R=1.0, h=H, pixel=0.1, nz=1)
+    monkeypatch.setattr(EmbeddedWindows, "involved", lambda self, *args: np.zeros(len(self.tris), bool))
+    p = PenetrationCheck(des)(des.mesh.points)
+    assert not p.found and p.intersecting_pairs == 0
+
+
 def test_a_design_with_no_face_in_a_plane_of_the_print_has_no_blocks():
     """Triangles standing on edge in the print (no up or down face) are all tested."""
     pts = np.array([[0.0, 0, 0], [1, 0, 0], [0, 0, 1], [1, 0, 1]])

@@ -328,9 +328,10 @@ class PenetrationCheck:
         involved = np.nonzero(self.windows.involved(good, boxes, tri.lo, tri.hi))[0]
         found = _map(lambda pairs: self._crossings(X, tri, good, *pairs()), tri.close_pairs(involved),
                      "crossing triangles, chunk")
-        i = np.concatenate([f[0] for f in found])
-        j = np.concatenate([f[1] for f in found])
-        edges = [e for f in found for e in f[2]]  # the crossing edges
+        none = [np.zeros(0, np.int64)]  # no triangle left to test: every pair proved apart
+        i = np.concatenate([f[0] for f in found] or none)
+        j = np.concatenate([f[1] for f in found] or none)
+        edges = [e for f in found for e in f[2]] or [np.zeros((0, 2), np.int64)]  # the crossing edges
         if i.size:
             bad_cells += [owner[i], owner[j]]
 
