@@ -471,16 +471,19 @@ class PenetrationCheck:
         offset = _dot(tri.A, tri.unit)  # each triangle's plane: x . unit = offset
 
         def facing(part):
-            centre = X[part] + r * vn[part]
-            vi, tj = tri.pairs_with(centre, r)
-            p, u, o = X[part[vi]], tri.unit[tj], offset[tj]
+            Xp, Np = X[part], vn[part]
+            vi, tj = tri.pairs_with(Xp + r * Np, r)
+            u = tri.unit[tj]
             # cheap and necessary: the vertex in front of the triangle's plane and within range of
-            # it, and the ball meeting that plane (the vertex's own face, tangent to the ball at
-            # it, is dropped here wherever its radius of curvature exceeds r: 99.2 % of the 10^5-cell twist's pairs)
-            s = _dot(p, u) - o
-            ball = np.abs(_dot(centre[vi], u) - o)
-            keep = (s > 1e-9 * r) & (s <= r) & (ball <= r * (1.0 + 1e-6))
-            vi, tj, p = vi[keep], tj[keep], p[keep]
+            # it, and the ball about p + r n meeting that plane (the vertex's own face, tangent to the
+            # ball at it, is dropped here wherever its radius of curvature exceeds r: 99.2 % of the
+            # 10^5-cell twist's pairs); the plane's distance first, the ball's on what is left
+            s = _dot(Xp[vi], u) - offset[tj]
+            keep = (s > 1e-9 * r) & (s <= r)
+            vi, tj, u, s = vi[keep], tj[keep], u[keep], s[keep]
+            keep = np.abs(s + r * _dot(Np[vi], u)) <= r * (1.0 + 1e-6)  # the centre's distance to the plane
+            vi, tj = vi[keep], tj[keep]
+            p = Xp[vi]
             if not vi.size:
                 return part[vi], tj, np.zeros(0)
             q = point_triangle_closest(p, tri.A[tj], tri.B[tj], tri.C[tj])
