@@ -95,11 +95,14 @@ def test_a_fold_through_itself_inside_a_window_is_found_as_without_windows(monke
     assert p == _without_windows(monkeypatch, check, X)
 
 
-def test_a_fold_short_of_itself_leaves_its_window_good_only_where_proved():
-    """Folded by 60 degrees the strip is embedded: no crossing; its fold's windows may or may not be good."""
+def test_a_fold_short_of_itself_is_found_clear_as_without_windows(monkeypatch):
+    """Folded by 60 degrees the strip is embedded: no crossing, and the same answer with no window good."""
     des, X = _folded(math.radians(60))
-    p = PenetrationCheck(des)(X)
+    check = PenetrationCheck(des)
+    p = check(X)
     assert not p.found and p.intersecting_pairs == 0
+    assert _good(check, X).any()
+    assert p == _without_windows(monkeypatch, check, X)
 
 
 def _rolled(turns, gap, cells=48, pixel=0.1, width=4, seed=0):
