@@ -68,6 +68,18 @@ def test_a_window_of_three_blocks_is_not_a_rectangle():
     assert middle.sum() == 2 and not w.full[middle].any() and w.full[~middle].all()
 
 
+def test_a_surface_cut_along_an_edge_proves_nothing():
+    """Two vertices at one place of the print (a cut): the shape may jump across it, which the
+    gradients do not see, so no window is good. The same mesh without the cut has every one full."""
+    des = gdfe.from_rows(["R" * 12] * 12, R=1.0, h=H, pixel=0.1, nz=1)
+    tris = PenetrationCheck(des).tris.copy()
+    assert EmbeddedWindows(des.mesh.points, tris).full.all()
+    points = np.vstack([des.mesh.points, des.mesh.points[:1]])  # vertex 0 again, as vertex n
+    k = np.nonzero((tris == 0).any(axis=1))[0][0]  # a triangle at vertex 0 takes the copy
+    tris[k][tris[k] == 0] = len(points) - 1
+    assert not EmbeddedWindows(points, tris).full.any()
+
+
 def _folded(angle, cells=16, fold_at=6, pixel=0.1, width=8):
     """A strip folded by ``angle`` about the line across it ``fold_at`` cells along, at mid-thickness."""
     des = gdfe.from_rows(["R" * cells] * width, R=1.0, h=H, pixel=pixel, nz=2)

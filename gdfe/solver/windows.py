@@ -25,7 +25,8 @@ A window is a rectangle when its triangles' print area equals that of their boun
 (boundary faces of one plane facing one way never overlap); one at a hole or an edge of the
 film is not, and its triangles are tested as before. So are the triangles of the other
 faces (the film's sides, the steps of the coatings), and every pair from blocks that share
-no good window.
+no good window. The proof needs the shape continuous across a window, one vertex at each place
+of the print, as gdfe's meshes have; on a mesh with two vertices at one place no window is good.
 """
 
 from __future__ import annotations
@@ -43,6 +44,25 @@ BLOCK_CELLS = 4
 GOOD_MARGIN = 0.99
 # the four windows of a block: it is their block (0, 0), (1, 0), (0, 1) or (1, 1)
 _WINDOW_OFFSETS = ((0, 0), (1, 0), (0, 1), (1, 1))
+
+
+def _one_vertex_per_place(print_points, tris, level, origin, pixel):
+    """Whether no two vertices of ``tris`` share a place of the print (its level and pixel corner).
+
+    The proof needs the shape continuous across a window: a surface cut along an edge, its two
+    sides with vertices of their own, could pass through itself there. gdfe's meshes have one
+    vertex per lattice point (:func:`gdfe.mesh.sheet_mesh`); a mesh made otherwise proves nothing.
+    Points off the lattice round to a place another may share, which also proves nothing.
+    """
+    used = np.zeros(len(print_points), bool)
+    used[tris.ravel()] = True
+    v = np.nonzero(used)[0]
+    ij = np.rint((print_points[v, :2] - origin) / pixel).astype(np.int64)
+    if ij.min() < 0:
+        return False
+    span = ij.max(axis=0) + 1
+    place = (level[v].astype(np.int64) * span[0] + ij[:, 0]) * span[1] + ij[:, 1]
+    return bool(np.bincount(place).max() <= 1)
 
 
 def _unkey(keys, span):
@@ -94,7 +114,8 @@ class EmbeddedWindows:
             return
         plane = 2 * la[zt].astype(np.int64) + (det > 0)  # its level and the way it faces
         lo2, hi2 = np.minimum(np.minimum(A, B), C), np.maximum(np.maximum(A, B), C)
-        size = block_cells * np.median(hi2 - lo2, axis=0)  # the pixel, times the block's cells
+        pixel = np.median(hi2 - lo2, axis=0)
+        size = block_cells * pixel  # the pixel, times the block's cells
         b = np.floor(((A + B + C) / 3.0 - lo2.min(axis=0)) / size).astype(np.int64)
         # integer keys (plane, x, y), the coordinates shifted by one so that a window's (-1) fits
         span = b.max(axis=0) + 3
@@ -111,7 +132,6 @@ class EmbeddedWindows:
         self._verts = tris[self._zt].astype(np.int32 if len(print_points) < 2**31 else np.int64)
         counts = np.bincount(blk, minlength=self.n_blocks)
         self._starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-        self._span = span
         self._plane, self._bxy = _unkey(ukeys, span)
         # the print's inverse edge matrices and areas, in block order
         ux, uy, vx, vy, det = ux[order], uy[order], vx[order], vy[order], det[order]
@@ -136,6 +156,7 @@ class EmbeddedWindows:
         np.maximum.at(whi, members, np.repeat(bhi, 4, axis=0))
         box = np.prod(whi - wlo, axis=1)
         self.full = np.abs(self._area_w - box) <= 1e-9 * box  # the window's print is its bounding box
+        self.full &= _one_vertex_per_place(print_points, tris[zt], level, lo2.min(axis=0), pixel)
         self._area_b = area_b
 
     # -- at one shape ---------------------------------------------------------------------------
@@ -201,8 +222,9 @@ class EmbeddedWindows:
         """The triangles whose crossings the test must still look at, as a bool array over all triangles.
 
         ``boxes`` is :meth:`good`'s block boxes; ``lo``, ``hi`` the triangles' boxes ``(t, 3)``
-        at the shape. The blocks and the other triangles are boxes; a triangle is involved when
-        its box, or its block's, overlaps one that is not covered with it by a good window.
+        at the shape. A triangle in a block is involved when its block's box overlaps the box of
+        a block not covered with it by a good window, or of a triangle in no block; those are
+        always involved.
         """
         t = len(self.tris)
         loose = np.nonzero(self.block < 0)[0]
