@@ -17,7 +17,7 @@ import scipy.sparse as sp
 
 from gdfe._validation import GdfeError, check_choice
 
-__all__ = ["DEVICES", "gpu_available", "resolve", "array_module", "to_device", "to_host", "to_device_sparse",
+__all__ = ["DEVICES", "dot", "gpu_available", "resolve", "array_module", "to_device", "to_host", "to_device_sparse",
            "polar"]
 
 log = logging.getLogger(__name__)
@@ -104,3 +104,12 @@ def polar(S, xp=np):
     d = xp.where(d == 0, 1.0, d)
     U[:, :, 2] *= d[:, None]
     return xp.matmul(U, Vt)
+
+
+def dot(a, b):
+    """``sum(a * b)`` of two ``(n, k)`` arrays, as a float, without BLAS: a threaded BLAS dot on a
+    busy 2-core machine took 5 ms for 15 000 numbers (threads woken and waited for) against 5 us in
+    one thread. On CuPy arrays, the GPU's own."""
+    if isinstance(a, np.ndarray):
+        return float(np.einsum("ij,ij->", a, b))
+    return float((a * b).sum())

@@ -474,7 +474,7 @@ class LocalGlobal:
             X -= np.matmul(P, Q.transpose(0, 2, 1))
         # sum of squares of the misfit itself, not |X|^2 + |P|^2 - 2 tr(Q^T S), which
         # cancels to round-off when a cell reaches its rest shape; over all cells at once
-        E = float(np.einsum("m,mki,mki->", self.w, X, X))  # no BLAS dot: see gdfe.solver.newton._dot
+        E = float(np.einsum("m,mki,mki->", self.w, X, X))  # no BLAS dot: see gdfe.solver.device.dot
         self.timings["orientation"] += time.perf_counter() - t0
         return Orientation(Q, S, max(E, 0.0))
 

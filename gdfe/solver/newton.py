@@ -25,6 +25,7 @@ import scipy.sparse as sp
 
 from gdfe import _memory
 from gdfe._validation import GdfeError, check_choice, check_int
+from gdfe.solver.device import dot as _dot
 from gdfe.solver.energy import SolveStats
 from gdfe.solver.linalg import Factoriser, factorise
 from gdfe.solver.multigrid import lattice
@@ -790,13 +791,6 @@ class ReducedHessian:
 
         return CGOperator(apply_H, apply_P)
 
-
-def _dot(a, b):
-    """``sum(a * b)`` without BLAS: a threaded BLAS dot on a busy 2-core machine took 5 ms for 15 000
-    numbers (threads woken and waited for) against 5 us in one thread. On CuPy arrays, the GPU's own."""
-    if isinstance(a, np.ndarray):
-        return float(np.einsum("ij,ij->", a, b))
-    return float((a * b).sum())
 
 
 def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None, flexible=False, leave_saddle=False):

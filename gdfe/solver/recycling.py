@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from gdfe.solver.device import dot as _dot
 from gdfe.solver.rigid import without_turn
 
 __all__ = ["DIRECTION_DROP", "TURN_SHARE", "AugmentedCoarse", "mostly_turn"]
@@ -137,7 +138,3 @@ def mostly_turn(u, V, pin):
     """
     rest = without_turn(u, V, pin)
     return bool(_dot(rest, rest) < TURN_SHARE ** 2 * _dot(u, u))
-
-
-def _dot(a, b):
-    return float(np.einsum("ij,ij->", a, b))
