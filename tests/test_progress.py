@@ -164,7 +164,7 @@ def test_the_penetration_check_reports_its_chunks(caplog):
 
 @pytest.mark.parametrize("run", ["turn", "recycle3", "windows", "steps", "medians"])
 def test_the_time_estimate_is_within_its_stated_factor_of_the_benchmark(run):
-    """``gdfe.resources.CALIBRATION`` says "good to a factor of 2-3": every sheet of the five latest
+    """``gdfe.resources.CALIBRATION`` says "good to a factor of 2-3": every sheet of the latest
     benchmarks of the default solver (10^3 to 10^6 cells, the corrugation and the Figure 8 plates)
     took between half and twice its estimate. (The fit before them said 31 min for the 10^6 sheet's
     8.5-10.6 min.)"""
