@@ -149,3 +149,49 @@ def test_solve_from_a_guess_meets_the_same_test_in_fewer_cycles():
     assert one.shape == (len(s.free),) and cycles[2] <= 0.6 * cycles[0]
     with pytest.raises(ValueError, match=r"x0: expected the shape of b"):
         mg.solve(b, x0=near.T)
+
+
+def _plain_cycle(mg, b, level, levels):
+    """The V-cycle as its formula reads, each product and correction a new array: the reference of the in-place one."""
+    if level == len(levels):
+        return mg.coarse.solve(np.asfortranarray(b, dtype=np.float64)).astype(b.dtype, copy=False)
+    A, P, wd = levels[level]
+    wd = wd[:, None] if b.ndim == 2 else wd
+    x = wd * b
+    for _ in range(mg.smoothing - 1):
+        x = x + wd * (b - A @ x)
+    x = x + P @ _plain_cycle(mg, P.T @ (b - A @ x), level + 1, levels)
+    for _ in range(mg.smoothing):
+        x = x + wd * (b - A @ x)
+    return x
+
+
+@pytest.mark.parametrize("smoothing", [1, 2])
+def test_vcycle_in_place_gives_the_bits_of_its_formula(smoothing):
+    """The V-cycle reuses each residual's array for its Jacobi correction: the same numbers, in double and single."""
+    des = _disc()
+    s = Solver(des)
+    mg = Multigrid(s.L_ff, lattice(des.mesh)[s.free], coarsest=200, smoothing=smoothing)
+    b = np.random.default_rng(3).standard_normal((len(s.free), 3))
+    assert np.array_equal(mg.vcycle(b), _plain_cycle(mg, b, 0, mg._double))
+    single = _plain_cycle(mg, b.astype(np.float32), 0, mg._single)
+    assert mg.vcycle_single(b).dtype == np.float32
+    assert np.array_equal(mg.vcycle_single(b), single)
+    assert np.array_equal(mg.vcycle(b, single=True), single.astype(np.float64))
+
+
+@pytest.mark.parametrize("multigrid", [False, True])
+@pytest.mark.parametrize("sheet", [True, False])
+def test_approx_solve_pinned_is_the_free_rows_solve_over_the_scale(monkeypatch, multigrid, sheet):
+    """Newton-CG's n x n preconditioner by slices around the pinned vertex (inside the numbering on the
+    sheet, the first vertex on the disc): the numbers of the index-array form."""
+    if multigrid:
+        monkeypatch.setattr(sys.modules["gdfe.solver.energy"], "MULTIGRID_CELLS", 100)
+    s = Solver(gdfe.from_masks(*mask_sheet(900), 0.1, 0.7, nz=1) if sheet else _disc())
+    assert s.uses_multigrid == multigrid and (0 < s.pin < s.n - 1 if sheet else s.pin == 0)
+    r = np.random.default_rng(5).standard_normal((s.n, 3))
+    r[s.pin] = 0.0
+    want = np.zeros_like(r)
+    want[s.free] = s.approx_solve_free(r[s.free]) / 2.5
+    got = s.approx_solve_pinned(r, 2.5)
+    assert got.dtype == np.float64 and np.array_equal(got, want)

@@ -356,6 +356,55 @@ def test_deflated_two_level_cg_gives_the_balancing_iterates_for_fewer_products(m
     assert np.abs(Zt @ (b - ops.apply_H(x0))).max() <= 1e-9 * np.abs(Zt @ b).max()
 
 
+def _plain_pcg(apply_H, apply_P, rhs, rtol, max_iter, start, flexible):
+    """Preconditioned CG as its formulas read, each update a new array: the reference of the in-place one."""
+    from gdfe.solver.device import dot
+
+    x = start(rhs)
+    r = rhs - apply_H(x)
+    z = apply_P(r)
+    rz = dot(r, z)
+    stop = rtol * np.sqrt(rz + dot(rhs, x))
+    p = z
+    for k in range(1, max_iter + 1):
+        Hp = apply_H(p)
+        a = rz / dot(p, Hp)
+        x = x + a * p
+        r = r - a * Hp
+        z = apply_P(r)
+        rz_new = dot(r, z)
+        if np.sqrt(rz_new) <= stop:
+            return x, k
+        beta = -a * dot(z, Hp) / rz if flexible else rz_new / rz
+        p = z + beta * p
+        rz = rz_new
+    return x, max_iter
+
+
+@pytest.mark.parametrize("flexible", [False, True])
+def test_newton_cg_products_and_cg_in_place_give_the_bits_of_their_formulas(flexible):
+    """The Hessian product, the deflated preconditioner and CG write into arrays they own instead of
+    making temporaries (docs/solver.md): each gives the numbers of its formula, to the last bit."""
+    import gdfe.solver.newton as nw
+
+    sv, V, o, rest, hs = _plate_newton_system()
+    lin = hs.linearise(o.Q, o.S, rest, floor=1.0)  # positive definite: no stop at negative curvature
+    rng = np.random.default_rng(8)
+    b, u = rng.standard_normal((2, sv.n, 3))
+    b[sv.pin] = u[sv.pin] = 0.0
+    mu = 1e-4
+    ops = hs.operator(lin, rest, mu, recycled=[u])
+    J = hs.jacobian(lin, rest)
+    want = 2.0 * (1.0 + mu) * sv.apply_L_free(b) - 2.0 * (J.T @ (J @ b.ravel())).reshape(-1, 3)
+    want[sv.pin] = 0.0
+    assert np.array_equal(ops.apply_H(b), want)
+    z = sv.approx_solve_pinned(b, 2.0 * (1.0 + mu))
+    assert np.array_equal(ops.apply_P(b), z + ops.start(b - ops.apply_H(z)))
+    got = nw.pcg(ops.apply_H, ops.apply_P, b, 1e-8, 200, start=ops.start, flexible=flexible)
+    ref = _plain_pcg(ops.apply_H, ops.apply_P, b, 1e-8, 200, ops.start, flexible)
+    assert got[1] == ref[1] > 3 and np.array_equal(got[0], ref[0])
+
+
 def test_deflated_cg_stops_at_the_preconditioned_norm_of_the_balancing_preconditioner(monkeypatch):
     """The relative tolerance is measured against ``sqrt(b^T P b)`` of the balancing preconditioner in
     both forms: a loose tolerance stops both after the same iterations."""

@@ -132,6 +132,12 @@ def prolongation(ijk, layers=False):
     return P, cijk
 
 
+def _scaled(t, w):
+    """``w t`` in ``t``'s array (the Jacobi correction ``w (b - A x)``: the same numbers)."""
+    t *= w
+    return t
+
+
 class Multigrid:
     """A V-cycle hierarchy for a symmetric positive definite lattice matrix.
 
@@ -206,20 +212,30 @@ class Multigrid:
         10^5-cell corrugation's Newton-CG and the same CG iterations. The result is float64.
         """
         if single:
-            return self._cycle(np.asarray(b, np.float32), 0, self._single).astype(np.float64)
+            return self.vcycle_single(b).astype(np.float64)
         return self._cycle(b, 0, self._double)
+
+    def vcycle_single(self, b):
+        """:meth:`vcycle` with ``single``, its result in single precision as the cycle leaves it (for a caller
+        that converts it where it puts it)."""
+        return self._cycle(np.asarray(b, np.float32), 0, self._single)
 
     def _cycle(self, b, level, levels):
         if level == len(levels):
             return self.coarse.solve(np.asfortranarray(b, dtype=np.float64)).astype(b.dtype, copy=False)
         A, P, wd = levels[level]
         wd = wd[:, None] if b.ndim == 2 else wd
+
+        def residual(x):  # b - A x, in the product's array (no temporary as large as the level)
+            t = A @ x
+            return np.subtract(b, t, out=t)
+
         x = wd * b
         for _ in range(self.smoothing - 1):
-            x += wd * (b - A @ x)
-        x += P @ self._cycle(P.T @ (b - A @ x), level + 1, levels)
+            x += _scaled(residual(x), wd)
+        x += P @ self._cycle(P.T @ residual(x), level + 1, levels)
         for _ in range(self.smoothing):
-            x += wd * (b - A @ x)
+            x += _scaled(residual(x), wd)
         return x
 
     def solve(self, b, rtol=1e-11, max_iter=100, x0=None):

@@ -692,14 +692,14 @@ class ReducedHessian:
         J = self.jacobian(lin, rest) if J is None else J
         Jt = J.T
         # CG's vectors are zero at the pinned vertex, and so is the product there
-        pin, free, apply_L, fine_solve = steps.pin, steps.free, steps.apply_L_free, steps.approx_solve_free
+        pin, apply_L = steps.pin, steps.apply_L_free
         scale = 2.0 * (1.0 + mu)
         two_level = check_choice("two_level", self.two_level, TWO_LEVELS)
 
         def apply_H(v):
             # L v and J^T J v side by side on two threads (gdfe.solver.threads): the same arithmetic
             Lv, JJv = side_by_side(lambda: apply_L(v), lambda: Jt @ (J @ v.ravel()), rows=steps.n)
-            out = scale * Lv - 2.0 * JJv.reshape(-1, 3)
+            out = _combine(scale, Lv, JJv)
             if extra is not None:
                 out += (extra @ v.ravel()).reshape(-1, 3)
             out[pin] = 0.0
@@ -708,14 +708,16 @@ class ReducedHessian:
         coarse = AugmentedCoarse(fc.solve, Z, Zt, apply_H, recycled)
 
         def fine(r):
-            z = np.zeros_like(r)
-            z[free] = fine_solve(r[free]) / scale
-            return z
+            return steps.approx_solve_pinned(r, scale)
 
         if two_level == "deflated":
             def apply_P(r):
                 z = fine(r)
-                return z + coarse(r - apply_H(z))
+                t = apply_H(z)
+                np.subtract(r, t, out=t)  # r - H z, in the product's array
+                out = coarse(t)
+                out += z
+                return out
             # with an approximate coarse solve the residuals keep a coarse part and A-DEF2 is no longer
             # equivalent to the balancing preconditioner: CG takes its flexible form
             return CGOperator(apply_H, apply_P, start=coarse, flexible=cs.solver != "factor")
@@ -778,7 +780,7 @@ class ReducedHessian:
                 Lv, JJv = side_by_side(lambda: apply_L(v), lambda: Jtd @ (Jd @ v.ravel()), rows=steps.n)
             else:
                 Lv, JJv = apply_L(v), Jtd @ (Jd @ v.ravel())
-            out = scale * Lv - 2.0 * JJv.reshape(-1, 3)
+            out = _combine(scale, Lv, JJv)
             if Ed is not None:
                 out += (Ed @ v.ravel()).reshape(-1, 3)
             out[pin] = 0.0
@@ -804,7 +806,8 @@ def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None, flexible=False, leave
     round-off, which a line search takes and a Newton solve repeats (the 208-cell Figure 8 dome:
     200 steps of 1e-11 h; with it, 19 steps to the minimum).
 
-    ``rhs`` and what ``apply_H`` and ``apply_P`` return are arrays of one module (NumPy or CuPy).
+    ``rhs`` and what ``apply_H`` and ``apply_P`` return are arrays of one module (NumPy or CuPy);
+    each call must return a new array, which CG then updates in place (the residual, the direction).
     ``rtol`` is relative to the preconditioned norm ``sqrt(rhs^T P rhs)`` of the right-hand
     side; it may be a function of that norm (a forcing sequence that measures the gradient
     in the norm CG stops in, :func:`cg_directions`).
@@ -842,6 +845,7 @@ def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None, flexible=False, leave
     if np.sqrt(rz) <= stop:
         return x, 0
     p = z
+    work = None  # a p and a H p: one array for every iteration (see below)
     for k in range(1, max_iter + 1):
         Hp = apply_H(p)
         pHp = _dot(p, Hp)
@@ -851,17 +855,33 @@ def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None, flexible=False, leave
                 return x + p, k
             return x, k
         a = rz / pHp
-        x += a * p
-        r -= a * Hp
+        # the updates in place, the products in one kept array: a new temporary as large as the mesh's
+        # vertices is fresh memory from the system (its pages faulted in) at every use, at 10^6 cells
+        # 48 MiB each; the same arithmetic, so the same bits
+        if work is None:
+            work = p.copy()
+        x += np.multiply(p, a, out=work)
+        r -= np.multiply(Hp, a, out=work)
         z = apply_P(r)
         rz_new = _dot(r, z)
         if not rz_new > 0 or float(np.sqrt(rz_new)) <= stop:
             return x, k
         # flexible: z_k^T (r_k - r_k-1) with r_k - r_k-1 = -a H p, no copy of the last residual
         beta = -a * _dot(z, Hp) / rz if flexible else rz_new / rz
-        p = z + beta * p
+        p *= beta  # p = z + beta p
+        p += z
         rz = rz_new
     return x, max_iter
+
+
+def _combine(scale, Lv, JJv):
+    """``scale L v - 2 J^T J v`` from the two products (``(n, 3)`` and flat), in ``Lv``'s array: the Hessian
+    product of :meth:`ReducedHessian.operator` with no temporary (the same arithmetic)."""
+    JJv = JJv.reshape(Lv.shape)
+    Lv *= scale
+    JJv *= 2.0
+    Lv -= JJv
+    return Lv
 
 
 def factorised_directions(hessian, rest):
