@@ -859,9 +859,9 @@ def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None, flexible=False, leave
         # vertices is fresh memory from the system (its pages faulted in) at every use, at 10^6 cells
         # 48 MiB each; the same arithmetic, so the same bits
         if work is None:
-            work = p.copy()
-        x += np.multiply(p, a, out=work)
-        r -= np.multiply(Hp, a, out=work)
+            work = p.copy() if isinstance(p, np.ndarray) else False  # on the GPU, CuPy's own temporaries
+        x += _times(p, a, work)
+        r -= _times(Hp, a, work)
         z = apply_P(r)
         rz_new = _dot(r, z)
         if not rz_new > 0 or float(np.sqrt(rz_new)) <= stop:
@@ -872,6 +872,11 @@ def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None, flexible=False, leave
         p += z
         rz = rz_new
     return x, max_iter
+
+
+def _times(v, a, work):
+    """``a v``: in ``work`` for a NumPy array (no temporary), a new array where ``work`` is False."""
+    return np.multiply(v, a, out=work) if work is not False else a * v
 
 
 def _combine(scale, Lv, JJv):
