@@ -358,12 +358,11 @@ def _sheet_case(args):
                           max_iter=2)
     base = rss_kib()
     method = auto_method(des)
-    runs, peak = [], None
-    for _ in range(repeats):
-        runs.append(gdfe.simulate(des, method="auto"))
-        # one run's peak: the runs after it share the process and raised its maximum by 90-220 MiB at
-        # 10^5 cells (docs/bench/medians)
-        peak = rss_kib() if peak is None else peak
+    runs = [gdfe.simulate(des, method="auto")]
+    # one run's peak: the runs after it share the process and raised its maximum by 90-220 MiB at
+    # 10^5 cells (docs/bench/medians)
+    peak = rss_kib()
+    runs += [gdfe.simulate(des, method="auto") for _ in range(repeats - 1)]
     secs = [r.seconds for r in runs]
     med = statistics.median(secs)
     res = sorted(runs, key=lambda r: r.seconds)[(len(runs) - 1) // 2]  # the median run: its steps, start and check

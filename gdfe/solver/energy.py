@@ -463,7 +463,7 @@ class LocalGlobal:
         p = self.pin
         if not self.uses_multigrid:
             z = np.zeros_like(r)
-            z[self.free] = self.factor.solve(np.asfortranarray(r[self.free])) / scale
+            z[self.free] = self.approx_solve_free(r[self.free]) / scale
             return z
         b = np.empty((r.shape[0] - 1,) + r.shape[1:], np.float32)
         b[:p], b[p:] = r[:p], r[p + 1:]

@@ -132,12 +132,6 @@ def prolongation(ijk, layers=False):
     return P, cijk
 
 
-def _scaled(t, w):
-    """``w t`` in ``t``'s array (the Jacobi correction ``w (b - A x)``: the same numbers)."""
-    t *= w
-    return t
-
-
 class Multigrid:
     """A V-cycle hierarchy for a symmetric positive definite lattice matrix.
 
@@ -230,12 +224,17 @@ class Multigrid:
             t = A @ x
             return np.subtract(b, t, out=t)
 
+        def jacobi(x):  # the damped Jacobi correction w (b - A x), in the same array
+            t = residual(x)
+            t *= wd
+            return t
+
         x = wd * b
         for _ in range(self.smoothing - 1):
-            x += _scaled(residual(x), wd)
+            x += jacobi(x)
         x += P @ self._cycle(P.T @ residual(x), level + 1, levels)
         for _ in range(self.smoothing):
-            x += _scaled(residual(x), wd)
+            x += jacobi(x)
         return x
 
     def solve(self, b, rtol=1e-11, max_iter=100, x0=None):

@@ -845,7 +845,10 @@ def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None, flexible=False, leave
     if np.sqrt(rz) <= stop:
         return x, 0
     p = z
-    work = None  # a p and a H p: one array for every iteration (see below)
+    # the updates in place, a p and a H p in one kept array: a new temporary as large as the mesh's vertices
+    # is fresh memory from the system (its pages faulted in) at every use, at 10^6 cells 48 MiB each; the
+    # same arithmetic, so the same bits (on the GPU, CuPy's own temporaries)
+    work = p.copy() if isinstance(p, np.ndarray) else None
     for k in range(1, max_iter + 1):
         Hp = apply_H(p)
         pHp = _dot(p, Hp)
@@ -855,11 +858,6 @@ def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None, flexible=False, leave
                 return x + p, k
             return x, k
         a = rz / pHp
-        # the updates in place, the products in one kept array: a new temporary as large as the mesh's
-        # vertices is fresh memory from the system (its pages faulted in) at every use, at 10^6 cells
-        # 48 MiB each; the same arithmetic, so the same bits
-        if work is None:
-            work = p.copy() if isinstance(p, np.ndarray) else False  # on the GPU, CuPy's own temporaries
         x += _times(p, a, work)
         r -= _times(Hp, a, work)
         z = apply_P(r)
@@ -875,13 +873,13 @@ def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None, flexible=False, leave
 
 
 def _times(v, a, work):
-    """``a v``: in ``work`` for a NumPy array (no temporary), a new array where ``work`` is False."""
-    return np.multiply(v, a, out=work) if work is not False else a * v
+    """``a v``: in ``work`` where given (no temporary), else a new array."""
+    return a * v if work is None else np.multiply(v, a, out=work)
 
 
 def _combine(scale, Lv, JJv):
-    """``scale L v - 2 J^T J v`` from the two products (``(n, 3)`` and flat), in ``Lv``'s array: the Hessian
-    product of :meth:`ReducedHessian.operator` with no temporary (the same arithmetic)."""
+    """``scale L v - 2 J^T J v`` from the two products (``(n, 3)`` and flat), in ``Lv``'s array (``JJv``'s is
+    overwritten too): the Hessian product of :meth:`ReducedHessian.operator` with no temporary (the same arithmetic)."""
     JJv = JJv.reshape(Lv.shape)
     Lv *= scale
     JJv *= 2.0

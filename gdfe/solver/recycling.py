@@ -90,7 +90,6 @@ class AugmentedCoarse:
     def __init__(self, solve, Z, Zt, apply_H, U):
         self.solve, self.Z, self.Zt = solve, Z, Zt
         self.V, self.inv_energy = [], []
-        self._work = None
         # (H v_i)^T u_j for the directions u_j still to come: one product held at a time (48 MiB at 10^6 cells)
         later = [[] for _ in U]
         for j, u in enumerate(U):
@@ -110,6 +109,7 @@ class AugmentedCoarse:
                 for k in range(j + 1, len(U)):
                     later[k].append(_dot(hv, U[k]))
             del hv
+        self._work = np.empty_like(self.V[0]) if self.V else None  # c v, of every direction at every call
 
     @property
     def rank(self) -> int:
@@ -120,8 +120,6 @@ class AugmentedCoarse:
         """``W (W^T H W)^{-1} W^T r`` for ``r`` ``(n, 3)``."""
         out = self.Z @ self.solve((self.Zt @ r).ravel()).reshape(-1, 3)
         for v, inv in zip(self.V, self.inv_energy):
-            if self._work is None:  # c v in one kept array, not a new one per direction and call
-                self._work = np.empty_like(v)
             out += np.multiply(v, _dot(v, r) * inv, out=self._work)
         return out
 
