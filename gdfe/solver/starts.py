@@ -58,6 +58,7 @@ def multilevel_start(design, activation):
         V = solver.linearised_start(coarse.mesh.points.copy(), activation)
     stats = solver.solve(V, activation, method=auto_method(coarse), tol=MULTILEVEL_TOL, max_iter=MULTILEVEL_ITER,
                          on_drift="stop")
+    solver.drop_caches()  # the level's Hessian and multigrid refer back to the solver: not left to the cyclic collector
     log.debug("multilevel: %d cells, %d iterations, residual %.2e", coarse.n_cells, stats.iterations,
               stats.residual, extra={"progress": {"event": "level", "cells": coarse.n_cells}})
     return prolong @ stats.points
