@@ -162,7 +162,7 @@ def test_the_penetration_check_reports_its_chunks(caplog):
     assert "checking self-penetration: gap search" in stages
 
 
-@pytest.mark.parametrize("run", ["turn", "recycle3", "windows", "steps", "medians", "inplace"])
+@pytest.mark.parametrize("run", ["turn", "recycle3", "windows", "steps", "medians", "inplace", "coarse40k"])
 def test_the_time_estimate_is_within_its_stated_factor_of_the_benchmark(run):
     """``gdfe.resources.CALIBRATION`` says "good to a factor of 2-3": every sheet of the latest
     benchmarks of the default solver (10^3 to 10^6 cells, the corrugation and the Figure 8 plates)

@@ -436,16 +436,19 @@ class ReducedHessian:
     coarse_spacing_few = 1.5
     #: ... widened so that the grid has at most about this many coarse cells per layer where the
     #: coarse matrix is factorised (every step; its factorisation grows faster than its size),
-    #: not where smoothed aggregation solves it (:attr:`coarse_solver`).
-    coarse_cells = 10_000
+    #: not where smoothed aggregation solves it (:attr:`coarse_solver`). At 40 000 the 10^6-cell
+    #: corrugation keeps the 10^5 sheet's 5 pixels (1.7 h, two layers of 201 x 201 coarse vertices):
+    #: from one start its fine level took 200 CG iterations in 19 steps where 10 000 (10 pixels)
+    #: took 379 in 18, and 357 s against 424 s (docs/solver.md); 20 000 (8 pixels) took 382.
+    coarse_cells = 40_000
     #: How the coarse matrix is solved (:data:`COARSE_SOLVERS`): ``"factor"`` (the default), a
     #: sparse factorisation at every step, which bounds the grid to :attr:`coarse_cells` cells
-    #: per layer, so that on larger parts it is wider and leaves more to CG (the 10^6-cell
-    #: corrugation: 10 pixels apart, 3.4 h, against 5 at 10^5); ``"amg"``,
+    #: per layer, so that on larger parts it is wider and leaves more to CG; ``"amg"``,
     #: :attr:`coarse_cycles` smoothed-aggregation V-cycles (:class:`gdfe.solver.amg.CoarseAMG`,
     #: needs pyamg), whose cost grows with the grid's size and no faster, so the grid keeps its
-    #: spacing at every size. On the 10^6-cell corrugation ``"amg"`` took 20 % fewer CG
-    #: iterations but about the same time, and 420 MiB more (docs/solver.md): not the default.
+    #: spacing at every size. On the 10^6-cell corrugation, against a factorised grid of 10 000 cells
+    #: per layer, ``"amg"`` took 20 % fewer CG iterations but about the same time, and 420 MiB more
+    #: (docs/solver.md): not the default.
     coarse_solver = "factor"
     #: V-cycles of one coarse solve with ``"amg"`` (a stationary iteration from zero: a fixed,
     #: symmetric operator, so that CG's preconditioner does not change from one iteration to the next).

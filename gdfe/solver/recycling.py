@@ -2,7 +2,7 @@
 
 A large sheet can have a soft mode the coarse grid cannot carry: the 10^6-cell corrugation
 settles by bending as a whole across its folds, the panels rigid and the fold lines
-turning, which bilinear fields on a grid ten pixels apart cannot follow without
+turning, which bilinear fields on the grid ten pixels apart it then had cannot follow without
 stretching the panels, so the grid's Galerkin matrix makes that mode far stiffer than it
 is and leaves it to CG. Newton creeps along it: on the 62 500-cell level of that sheet 14
 steps in a row pointed the same way (successive steps at cosines 0.94-0.999), each 1-2 h
