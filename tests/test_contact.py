@@ -420,9 +420,21 @@ def test_auto_solves_with_contact_when_only_the_final_check_finds_a_crossing(mon
     from gdfe.solver import simulation
 
     monkeypatch.setattr(simulation, "AUTO_CHECK_EVERY", 10**6)
+    checks = []  # whether the solver still held its Hessian when each penetration check began
+    check = simulation.PenetrationCheck
+
+    def spy(design):
+        checks.append(any("reduced_hessian" in vars(s) for s in solvers))
+        return check(design)
+    solvers = []
+    solver = simulation.Solver
+    monkeypatch.setattr(simulation, "Solver", lambda *a, **k: solvers.append(solver(*a, **k)) or solvers[-1])
+    monkeypatch.setattr(simulation, "PenetrationCheck", spy)
     res = gdfe.simulate(gdfe.hinge(5.0, d=0.33, cell_size=0.5))
     assert res.contact.used and res.contact.reason.startswith("the contact-free solve penetrated itself")
     assert not res.penetrates and res.contact.pairs > 0
+    # both checks, the contact-free solve's and the contact solve's, run with the solver's caches dropped
+    assert checks == [False, False]
 
 
 def test_hinge_9mm_with_contact_has_no_penetration():

@@ -386,8 +386,7 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
     except _Crossed as stop:
         run, pens, t_check, crossed = None, [], 0.0, stop.reason
     else:
-        solver.drop_caches()  # the check need not sit beside the solver's largest arrays
-        pens, t_check = _check_frames(design, run.frames)
+        pens, t_check = _check_frames(solver, run.frames)
         crossed = None
         if any(p.found for p in pens):
             worst = max(pens, key=lambda p: p.depth_mm)
@@ -407,7 +406,7 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
                 log.info("contact solve with method=%r (the contact solve needs a Newton method)", cmethod)
             method = cmethod
             run = _run_frames(solver, acts, method, term, **opts)
-            pens, t2 = _check_frames(design, run.frames)
+            pens, t2 = _check_frames(solver, run.frames)
             t_check += t2
             report = ContactReport(mode=contact, used=True, available=True, reason=crossed)
         else:
@@ -495,12 +494,15 @@ class _FrameRun:
     drift: dict = None
 
 
-def _check_frames(design, frames):
+def _check_frames(solver, frames):
     """The penetration check of every frame after the flat print, and the seconds it took with its set-up.
 
-    The check is made here, after the solve: its topology (vertex pairs, the cells of each
-    vertex) need not be held beside the solver's largest arrays (0.7 GiB at 10^6 cells).
+    The check is made here, after the solve, and the solver's caches are dropped first
+    (:meth:`Solver.drop_caches`), after the contact solve too: its topology (vertex pairs, the
+    cells of each vertex) need not be held beside the solver's largest arrays (0.7 GiB at 10^6 cells).
     """
+    solver.drop_caches()
+    design = solver.design
     t0 = time.perf_counter()
     log.debug("checking self-penetration: %d cells, %d frames", design.n_cells, len(frames) - 1,
               extra={"progress": {"event": "check", "frame": None, "frames": len(frames) - 1}})
