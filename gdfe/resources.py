@@ -4,10 +4,13 @@ A design's mesh takes about :data:`MESH_BYTES_PER_CELL` per cell; a simulation's
 grows by about :data:`SOLVE_BYTES_PER_CELL` per cell over a base of :data:`BASE_BYTES`, plus
 the frames it keeps; its time per frame follows a power law in the cell count
 (:data:`SECONDS_AT`, :data:`TIME_EXPONENTS`). The constants are fitted to the benchmark's
-measurements on 2 cores (``gdfe bench``; its last results, 10^3 to 10^6 cells, are in
-``docs/bench/bench.txt`` and the README): they are estimates, good to a factor of 2-3
-(thin cells, ``nz`` large, converge more slowly), meant to decide before a run whether it
-fits the machine and whether it is long enough to ask first.
+measurements on 2 cores (``gdfe bench``, 10^3 to 10^6 cells, and the 4*10^6-cell sheet of
+``docs/bench/sheet4e6``): they are estimates, meant to decide before a run whether it fits the
+machine and whether it is long enough to ask first. The memory is an upper envelope of the
+measured peaks (1.07-1.38 times each from 7.8*10^4 cells up); the time is within a factor of 2
+of the benchmark's sheets, and longer than a design that converges in a few steps takes (the
+785 456-cell Figure 8 dome, 4 steps: a fifth of its estimate). Thin cells (``nz`` large)
+converge more slowly (:func:`thin_factor`).
 
 Calibration. The time of a frame is fitted to the benchmark's corrugated sheets
 (``docs/bench/corrugation``; ``docs/bench/bench.json`` ``sheets``), whose measured seconds
@@ -41,18 +44,22 @@ __all__ = ["Estimate", "estimate_run", "estimate_design", "machine_memory", "che
 
 #: Bytes per cell of a design's mesh and cell data (points, hexahedra, indices, materials).
 MESH_BYTES_PER_CELL = 600
-#: Peak memory of a solve: a base (the interpreter, numpy, scipy) and bytes per cell (the
-#: factorised systems, the Hessian, the batched SVDs), fitted to the benchmark's peak memory
-#: (per cell over the base: 5 840 B for the 10^6 corrugation, 6 600 B for the 785 456-cell dome,
-#: 9 700-10 900 B at 10^5 cells, where fixed costs weigh more).
-BASE_BYTES = 100 * 2**20
-SOLVE_BYTES_PER_CELL = 7_000
+#: Peak memory of a solve: a base and bytes per cell (the design, the solver's systems and
+#: multigrid, the Newton-CG Hessian and vectors, the penetration check's triangles), an upper
+#: envelope of the peaks measured on 2 cores (ru_maxrss of one process, the design inside):
+#: the 10^5 sheets 746-929 MiB (``docs/bench/coarse40k``), the 785 456-cell Figure 8 dome
+#: 4 570 MiB, the 10^6 corrugation 5 565 MiB and the 4*10^6 corrugation 20 274 MiB
+#: (``docs/bench/sheet4e6``). The estimate is 1.07-1.38 times each (the large dome nearest); the fit before,
+#: 100 MiB and 7 000 B, said 26.5 GiB at 4*10^6 cells and kept that run off this 23.5 GiB machine.
+BASE_BYTES = 600 * 2**20
+SOLVE_BYTES_PER_CELL = 5_600
 #: Seconds of one frame at 10^4 cells, and the exponent of the time against the cell count below
 #: and above 10^5 cells, fitted to the benchmark's corrugated sheets with the default solver
 #: (docs/bench/turn, recycle3 and windows: 1.16-1.47 s at 10^4 cells, 12.7-16.8 s at 10^5,
 #: 508-634 s at 10^6; the fit gives 13.9 s and 593 s). The Figure 8 plates took 0.5-1.1 times the
 #: corrugation's time at 10^5 cells. (The fit before, (1.60 s, 1.21, 1.86), was of a slower solver:
-#: it said 31 min for the 10^6 sheet's 8-10.)
+#: it said 31 min for the 10^6 sheet's 8-10.) The 4*10^6-cell corrugation (docs/bench/sheet4e6) took 74 min
+#: against the 1.6 h it gives.
 SECONDS_AT = (1e4, 1.30)
 TIME_EXPONENTS = ((1e5, 1.03), (float("inf"), 1.63))
 #: Seconds every frame costs whatever its size (set-up, the penetration check, Python).
@@ -68,7 +75,8 @@ DESIGN_EVALUATION_SIMULATIONS = 1.34
 #: follows an optimisation).
 DESIGN_CHECK_SIMULATIONS = 3
 #: Where the time estimates come from, for the line printed with them.
-CALIBRATION = "fitted to gdfe bench on 2 cores (docs/bench), good to a factor of 2-3"
+CALIBRATION = ("fitted to gdfe bench on 2 cores (docs/bench): its sheets took half to twice their estimated "
+               "time, a design that converges in a few steps less")
 #: A run estimated to take longer than this, or more than this fraction of the machine's memory,
 #: is *large*: the command line asks for ``--large`` before it starts one (the 10^6-cell sheet, ~10 min).
 LARGE_SECONDS = 300.0

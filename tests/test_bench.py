@@ -124,6 +124,18 @@ def test_factorisation_backends_agree(monkeypatch):
     assert factor_backend() == "superlu"
 
 
+def test_the_bench_asks_for_no_factorisation_above_its_limit():
+    """Above ``FACTOR_MAX_CELLS`` the bound's solve is the multigrid's: no backend is asked for a factor."""
+    from studies.bench import FACTOR_MAX_CELLS, _factor_candidates, _time_factorisations
+
+    A = Solver(gdfe.hinge(1.0, d=0.33)).L_ff
+    out = _time_factorisations(A, 3, 1, factor=False)
+    assert set(out) == set(_factor_candidates())
+    assert all(v == {"skipped": f"above {FACTOR_MAX_CELLS} cells no factor fits in memory beside the solver"}
+               for v in out.values())
+    assert all("solve_s" in v for v in _time_factorisations(A, 3, 1).values())
+
+
 def test_unknown_factor_backend_is_rejected(monkeypatch):
     monkeypatch.setenv("GDFE_FACTOR", "mumps")
     with pytest.raises(ValueError, match="GDFE_FACTOR: expected one of 'cholmod', 'cvxopt', 'superlu', got 'mumps'"):

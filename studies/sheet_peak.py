@@ -1,0 +1,130 @@
+"""One whole simulation of a benchmark sheet, with its peak memory and where the peak was.
+
+``gdfe bench`` measures each sheet's peak as its child process's maximum resident set. This
+module does the same for one sheet in this process, and also samples the resident set from a
+thread (every :data:`SAMPLE_SECONDS`), so that it can say which code the main thread was in at the
+peak and stop the run when the resident set passes a limit (a run that would take the machine's
+last memory is stopped, and says so, instead of being killed by the system). The 4*10^6-cell
+corrugation and the 785 456-cell Figure 8 dome in ``docs/bench/sheet4e6`` were measured with it::
+
+    python -m studies.sheet_peak corrugation 4e6 --stop-above 22 --out corrugation_4e6.json
+
+It sits beside the benchmark (:mod:`studies.bench`, whose designs it solves) and is not one of
+the report's studies.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import sys
+import tempfile
+import threading
+import time
+import traceback
+
+from gdfe._validation import GdfeError
+
+__all__ = ["SAMPLE_SECONDS", "measure", "main"]
+
+#: How often the sampling thread reads the resident set.
+SAMPLE_SECONDS = 0.02
+
+
+def _rss_bytes():
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
+def _where(main_id, own_id):
+    """The last few gdfe frames of every other thread (the main thread named ``main``)."""
+    out = {}
+    for tid, frame in sys._current_frames().items():
+        if tid == own_id:
+            continue
+        stack = [f"{f.filename.rsplit('/', 1)[-1]}:{f.lineno}:{f.name}" for f in traceback.extract_stack(frame)
+                 if "gdfe" in f.filename][-5:]
+        if stack:
+            out["main" if tid == main_id else str(tid)] = stack
+    return out
+
+
+class _Sampler(threading.Thread):
+    """The resident set's maximum, where it was reached, and a stop above ``limit`` bytes."""
+
+    def __init__(self, limit):
+        super().__init__(daemon=True)
+        self.limit, self.peak, self.where, self.at = limit, 0, {}, 0.0
+        self.t0, self.done = time.perf_counter(), threading.Event()
+        self.main_id = threading.main_thread().ident
+
+    def run(self):
+        while not self.done.is_set():
+            rss = _rss_bytes()
+            if rss > self.peak:
+                self.peak, self.at = rss, time.perf_counter() - self.t0
+                self.where = _where(self.main_id, threading.get_ident())
+            if self.limit is not None and rss > self.limit:
+                print(f"sheet_peak: resident set {rss / 2**30:.2f} GiB passed --stop-above "
+                      f"{self.limit / 2**30:.1f} GiB after {self.at:.0f} s, in {self.where.get('main')}; stopped",
+                      file=sys.stderr, flush=True)
+                os._exit(3)
+            self.done.wait(SAMPLE_SECONDS)
+
+
+def measure(kind, n_cells, stop_above_gib=None):
+    """Simulate the benchmark's sheet ``kind`` of about ``n_cells`` cells (:func:`studies.bench._design`, defaults).
+
+    Returns a dict: the run's cells, steps, seconds, timings, energy and convergence; ``peak_rss_mib``
+    (the process's maximum resident set), ``peak_at_s`` and ``peak_where`` (the sampled peak's time
+    and the main thread's last gdfe frames there), ``rss_before_mib`` (with the design made).
+    ``stop_above_gib`` ends the process (exit status 3) once its resident set passes it.
+    """
+    import gdfe
+    from studies.bench import DESIGNS, _design
+
+    if kind not in DESIGNS:
+        raise GdfeError(f"kind: expected one of {', '.join(DESIGNS)}, got {kind!r}")
+    des, pixels = _design(kind, int(n_cells), tempfile.mkdtemp())
+    sampler = _Sampler(None if stop_above_gib is None else float(stop_above_gib) * 2**30)
+    before = _rss_bytes()
+    sampler.start()
+    try:
+        res = gdfe.simulate(des, method="auto")
+    finally:
+        sampler.done.set()
+        sampler.join()
+    return {"design": kind, "cells": des.n_cells, "points": des.mesh.n_points, "pixels": list(pixels),
+            "seconds": res.seconds, "iterations": res.iterations, "converged": bool(res.converged),
+            "energy": float(res.energy), "timings": {k: float(v) for k, v in res.timings.items()},
+            "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+            "peak_sampled_mib": sampler.peak / 2**20, "peak_at_s": sampler.at, "peak_where": sampler.where,
+            "rss_before_mib": before / 2**20, "load_average": list(os.getloadavg())}
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(prog="python -m studies.sheet_peak", description=__doc__.splitlines()[0])
+    p.add_argument("kind", help="the benchmark's design (corrugation, fig08-twist, fig08-dome, fig08-saddle)")
+    p.add_argument("cells", type=float, help="about this many cells (e.g. 4e6)")
+    p.add_argument("--stop-above", type=float, metavar="GIB", help="stop once the resident set passes this")
+    p.add_argument("--out", help="write the record as JSON here (else print it)")
+    args = p.parse_args(argv)
+    if not args.cells >= 1:
+        p.error(f"cells: expected at least 1, got {args.cells:g}")
+    try:
+        row = measure(args.kind, args.cells, args.stop_above)
+    except GdfeError as exc:
+        p.error(str(exc))
+    text = json.dumps(row, indent=1)
+    if args.out:
+        with open(args.out, "w") as f:
+            f.write(text + "\n")
+    else:
+        print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
