@@ -10,7 +10,7 @@ corrugation and the 785 456-cell Figure 8 dome in ``docs/bench/sheet4e6`` were m
     python -m studies.sheet_peak corrugation 4e6 --stop-above 22 --out corrugation_4e6.json
 
 It sits beside the benchmark (:mod:`studies.bench`, whose designs it solves) and is not one of
-the report's studies.
+the report's studies. It reads the resident set from ``/proc`` (Linux, like the benchmark's machines).
 """
 
 from __future__ import annotations

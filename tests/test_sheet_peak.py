@@ -1,6 +1,7 @@
 """``studies.sheet_peak``: one benchmark sheet's whole simulation with its peak memory."""
 
 import json
+from pathlib import Path
 
 import pytest
 
@@ -29,7 +30,8 @@ def test_a_run_past_its_limit_is_stopped_and_says_so():
     import subprocess
     import sys
 
+    root = Path(__file__).resolve().parents[1]
     proc = subprocess.run([sys.executable, "-m", "studies.sheet_peak", "corrugation", "1e3", "--stop-above", "0.001"],
-                          capture_output=True, text=True, timeout=300)
+                          capture_output=True, text=True, timeout=300, cwd=root)
     assert proc.returncode == 3
     assert "passed --stop-above 0.0 GiB" in proc.stderr and "stopped" in proc.stderr
