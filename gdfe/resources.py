@@ -51,6 +51,7 @@ MESH_BYTES_PER_CELL = 600
 #: 4 570 MiB, the 10^6 corrugation 5 565 MiB and the 4*10^6 corrugation 20 274 MiB
 #: (``docs/bench/sheet4e6``). The estimate is 1.07-1.38 times each (the large dome nearest); the fit before,
 #: 100 MiB and 7 000 B, said 26.5 GiB at 4*10^6 cells and kept that run off this 23.5 GiB machine.
+#: (The base is the envelope's intercept, not the interpreter's own: a 1 024-cell run peaks at 115 MiB.)
 BASE_BYTES = 600 * 2**20
 SOLVE_BYTES_PER_CELL = 5_600
 #: Seconds of one frame at 10^4 cells, and the exponent of the time against the cell count below
