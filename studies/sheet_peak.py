@@ -87,7 +87,8 @@ def measure(kind, n_cells, stop_above_gib=None):
 
     if kind not in DESIGNS:
         raise GdfeError(f"kind: expected one of {', '.join(DESIGNS)}, got {kind!r}")
-    des, pixels = _design(kind, int(n_cells), tempfile.mkdtemp())
+    with tempfile.TemporaryDirectory() as masks:  # the design is read from its masks, which go with the folder
+        des, pixels = _design(kind, int(n_cells), masks)
     sampler = _Sampler(None if stop_above_gib is None else float(stop_above_gib) * 2**30)
     before = _rss_bytes()
     sampler.start()
