@@ -288,13 +288,13 @@ def _factor_with(name, A):
 
 
 def _time_factorisations(A, nrhs, repeats, superlu=True, factor=True):
+    if not factor:
+        return {name: {"skipped": f"above {FACTOR_MAX_CELLS} cells no factor fits in memory beside the solver"}
+                for name in _factor_candidates()}
     out = {}
     rng = np.random.default_rng(0)
     b = rng.standard_normal((A.shape[0], nrhs))
     for name in _factor_candidates():
-        if not factor:
-            out[name] = {"skipped": f"above {FACTOR_MAX_CELLS} cells no factor fits in memory beside the solver"}
-            continue
         if name == "superlu" and not superlu:
             out[name] = {"skipped": f"above {SUPERLU_MAX_CELLS} cells SuperLU's factor does not fit in memory"}
             continue
