@@ -13,7 +13,7 @@ def test_a_small_sheet_is_measured_with_its_peak_and_where_it_was(tmp_path):
     assert sheet_peak.main(["corrugation", "1e3", "--out", str(out)]) == 0
     row = json.loads(out.read_text())
     assert row["design"] == "corrugation" and row["cells"] == 1024 and row["converged"]
-    assert row["peak_rss_mib"] >= row["peak_sampled_mib"] > 0
+    assert row["peak_sampled_mib"] > 0 and row["peak_rss_mib"] == max(row["ru_maxrss_mib"], row["peak_sampled_mib"])
     assert row["peak_rss_mib"] >= row["rss_before_mib"] > 0
     assert 0.0 <= row["peak_at_s"] <= row["seconds"] + 1.0
     assert set(row["timings"]) >= {"setup"}
@@ -22,8 +22,33 @@ def test_a_small_sheet_is_measured_with_its_peak_and_where_it_was(tmp_path):
 def test_an_unknown_design_is_refused_by_name(capsys):
     with pytest.raises(SystemExit):
         sheet_peak.main(["mystery", "1e3"])
-    assert "kind: expected one of corrugation, fig08-twist, fig08-dome, fig08-saddle, got 'mystery'" in \
+    assert "kind: expected one of 'corrugation', 'fig08-twist', 'fig08-dome', 'fig08-saddle', got 'mystery'" in \
         capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["corrugation", "inf"], "cells: expected a finite number >= 4, got inf"),
+    (["corrugation", "2"], "cells: expected a finite number >= 4, got 2"),
+    (["corrugation", "1e12"], "cells: expected a sheet that fits in memory, got 1,000,000,000,000 cells"),
+    (["corrugation", "1e3", "--stop-above", "nan"], "stop_above_gib: expected a positive finite number, got nan"),
+    (["corrugation", "1e3", "--stop-above", "0"], "stop_above_gib: expected a positive finite number, got 0"),
+])
+def test_a_bad_size_or_limit_is_refused_before_anything_is_made(capsys, argv, message):
+    with pytest.raises(SystemExit) as exc:
+        sheet_peak.main(argv)
+    assert exc.value.code == 2 and message in capsys.readouterr().err
+
+
+def test_a_run_that_does_not_converge_says_so_and_fails(tmp_path, monkeypatch, capsys):
+    import gdfe
+
+    simulate = gdfe.simulate
+    monkeypatch.setattr(gdfe, "simulate", lambda design, **kw: simulate(design, max_iter=1, **kw))
+    out = tmp_path / "row.json"
+    assert sheet_peak.main(["corrugation", "1e3", "--out", str(out)]) == 1
+    row = json.loads(out.read_text())
+    assert not row["converged"] and row["iterations"] == 1
+    assert "sheet_peak: the 1,024-cell corrugation did not converge in 1 iterations" in capsys.readouterr().err
 
 
 def test_a_run_past_its_limit_is_stopped_and_says_so():
