@@ -287,17 +287,30 @@ def _factor_with(name, A):
     return lambda b: fac.solve(np.asfortranarray(b))
 
 
-def _time_factorisations(A, nrhs, repeats, superlu=True, factor=True):
-    if not factor:
-        return {name: {"skipped": f"above {FACTOR_MAX_CELLS} cells no factor fits in memory beside the solver"}
-                for name in _factor_candidates()}
+def _factor_skipped(name, cells):
+    """Why the benchmark asks backend ``name`` for no factor of a ``cells``-cell sheet's matrix, or None
+    (``cells`` None: a matrix of no sheet size, always factorised)."""
+    if cells is None:
+        return None
+    if cells > FACTOR_MAX_CELLS:
+        return f"above {FACTOR_MAX_CELLS} cells no factor fits in memory beside the solver"
+    if name == "superlu" and cells > SUPERLU_MAX_CELLS:
+        return f"above {SUPERLU_MAX_CELLS} cells SuperLU's factor does not fit in memory"
+    return None
+
+
+def _time_factorisations(A, nrhs, repeats, cells=None):
+    """Each backend's factorisation and solve of ``A`` with ``nrhs`` columns, where :func:`_factor_skipped` allows it."""
     out = {}
     rng = np.random.default_rng(0)
-    b = rng.standard_normal((A.shape[0], nrhs))
+    b = None
     for name in _factor_candidates():
-        if name == "superlu" and not superlu:
-            out[name] = {"skipped": f"above {SUPERLU_MAX_CELLS} cells SuperLU's factor does not fit in memory"}
+        reason = _factor_skipped(name, cells)
+        if reason is not None:
+            out[name] = {"skipped": reason}
             continue
+        if b is None:
+            b = rng.standard_normal((A.shape[0], nrhs))
         t_fac, _, solve = median_time(lambda: _factor_with(name, A), repeats)
         t_sol, _, x = median_time(lambda: solve(b), max(3, repeats))
         x = np.asarray(x).reshape(b.shape)
@@ -399,8 +412,7 @@ def _sheet_case(args):
     k = 5 if des.n_cells <= 20_000 else 3
     # factorisation backends on this sheet's matrices; the bound's solve is the fastest of their solves
     big = des.n_cells > 20_000
-    fac = {"n": _time_factorisations(sv.L_ff, 3, 1 if big else 3, superlu=des.n_cells <= SUPERLU_MAX_CELLS,
-                                     factor=des.n_cells <= FACTOR_MAX_CELLS)}
+    fac = {"n": _time_factorisations(sv.L_ff, 3, 1 if big else 3, cells=des.n_cells)}
     solves = {name: v["solve_s"] for name, v in fac["n"].items() if "solve_s" in v}
     # the multigrid's solve to round-off: the bound where no factorisation fits in memory (SuperLU's alone
     # above SUPERLU_MAX_CELLS), and beside the factor's, where one does, the bound as measured before CHOLMOD

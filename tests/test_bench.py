@@ -124,16 +124,22 @@ def test_factorisation_backends_agree(monkeypatch):
     assert factor_backend() == "superlu"
 
 
-def test_the_bench_asks_for_no_factorisation_above_its_limit():
-    """Above ``FACTOR_MAX_CELLS`` the bound's solve is the multigrid's: no backend is asked for a factor."""
-    from studies.bench import FACTOR_MAX_CELLS, _factor_candidates, _time_factorisations
+def test_the_bench_asks_for_no_factorisation_above_its_limits():
+    """Above ``FACTOR_MAX_CELLS`` the bound's solve is the multigrid's: no backend is asked for a factor;
+    above ``SUPERLU_MAX_CELLS`` SuperLU alone is not; below both, every backend is (the sheet's own cell count
+    decides, as ``_sheet_case`` passes it)."""
+    from studies.bench import FACTOR_MAX_CELLS, SUPERLU_MAX_CELLS, _factor_candidates, _time_factorisations
 
     A = Solver(gdfe.hinge(1.0, d=0.33)).L_ff
-    out = _time_factorisations(A, 3, 1, factor=False)
+    out = _time_factorisations(A, 3, 1, cells=FACTOR_MAX_CELLS + 1)
     assert set(out) == set(_factor_candidates())
     assert all(v == {"skipped": f"above {FACTOR_MAX_CELLS} cells no factor fits in memory beside the solver"}
                for v in out.values())
-    assert all("solve_s" in v for v in _time_factorisations(A, 3, 1).values())
+    out = _time_factorisations(A, 3, 1, cells=SUPERLU_MAX_CELLS + 1)
+    assert out["superlu"] == {"skipped": f"above {SUPERLU_MAX_CELLS} cells SuperLU's factor does not fit in memory"}
+    assert all("solve_s" in v for name, v in out.items() if name != "superlu")
+    for cells in (None, SUPERLU_MAX_CELLS):
+        assert all("solve_s" in v for v in _time_factorisations(A, 3, 1, cells=cells).values())
 
 
 def test_unknown_factor_backend_is_rejected(monkeypatch):
