@@ -20,7 +20,7 @@ import numpy as np
 
 from gdfe._validation import GdfeError, GdfeTypeError, describe
 
-__all__ = ["write_vtu", "write_series", "render_png", "write_json", "write_text", "surface_faces", "boundary_quads",
+__all__ = ["write_vtu", "write_series", "render_png", "write_json", "write_text", "check_creatable", "surface_faces", "boundary_quads",
            "atomic_path", "json_default", "save_figure", "OutputFolder", "MATERIAL_CODES", "MANIFEST", "MARKER",
            "folder_state", "hex_meshio", "material_field_data", "outline_edges", "EDGE_CELLS", "MATERIAL_LABELS",
            "VIEWS"]
@@ -534,6 +534,19 @@ def save_figure(fig, path, **kwargs):
     return path
 
 
+def check_creatable(path, name, what="folder"):
+    """Refuse now a ``path`` that could not be written later: its nearest existing folder is a file,
+    or one this process may not write in (:class:`GdfeError` naming ``name``, the option or argument)."""
+    parent = Path(path).absolute().parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        raise GdfeError(f"{name}: cannot create the {what} {path}: {parent} is a file")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise GdfeError(f"{name}: cannot create the {what} {path}: no permission to write in {parent}")
+    return Path(path)
+
+
 def write_text(path, text):
     """Write ``text`` to ``path`` (renamed into place when complete)."""
     with atomic_path(path) as tmp:
@@ -646,14 +659,7 @@ class OutputFolder:
         if state == "file":
             raise GdfeError(f"{self.name}: expected a folder, got the file {self.path}")
         if state == "missing":  # made when the command writes: its nearest existing folder must allow it
-            parent = self.path.absolute().parent
-            while not parent.exists() and parent != parent.parent:
-                parent = parent.parent
-            if not parent.is_dir():
-                raise GdfeError(f"{self.name}: cannot create the folder {self.path}: {parent} is a file")
-            if not os.access(parent, os.W_OK | os.X_OK):
-                raise GdfeError(f"{self.name}: cannot create the folder {self.path}: no permission to write in "
-                                f"{parent}")
+            check_creatable(self.path, self.name)
         if state == "foreign":
             raise GdfeError(f"{self.name}: {self.path} is a folder with files that gdfe did not write (no {MANIFEST}); "
                             f"gdfe replaces only its own output folders: give a new or empty folder")

@@ -39,6 +39,28 @@ def test_a_bad_size_or_limit_is_refused_before_anything_is_made(capsys, argv, me
     assert exc.value.code == 2 and message in capsys.readouterr().err
 
 
+def test_an_out_that_cannot_be_written_is_refused_before_the_run(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(sheet_peak, "measure", lambda *a: pytest.fail("the run began"))
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    for out, message in [(tmp_path, "--out: expected the name of a file to write, got"),
+                         (blocker / "row.json", f"--out: cannot create the file {blocker / 'row.json'}: {blocker} is a file")]:
+        with pytest.raises(SystemExit) as exc:
+            sheet_peak.main(["corrugation", "1e3", "--out", str(out)])
+        assert exc.value.code == 2 and message in capsys.readouterr().err
+
+
+def test_a_record_that_cannot_be_written_goes_to_stdout(tmp_path, capsys, monkeypatch):
+    def refuse(path, text):
+        raise OSError(28, "No space left on device")
+    monkeypatch.setattr(sheet_peak, "write_text", refuse)
+    out = tmp_path / "row.json"
+    assert sheet_peak.main(["corrugation", "1e3", "--out", str(out)]) == 1
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)["cells"] == 1024 and not out.exists()
+    assert f"sheet_peak: --out: cannot write {out}" in captured.err and "No space left on device" in captured.err
+
+
 def test_a_run_that_does_not_converge_says_so_and_fails(tmp_path, monkeypatch, capsys):
     import gdfe
 
@@ -59,4 +81,4 @@ def test_a_run_past_its_limit_is_stopped_and_says_so():
     proc = subprocess.run([sys.executable, "-m", "studies.sheet_peak", "corrugation", "1e3", "--stop-above", "0.001"],
                           capture_output=True, text=True, timeout=300, cwd=root)
     assert proc.returncode == 3
-    assert "passed --stop-above 0.0 GiB" in proc.stderr and "stopped" in proc.stderr
+    assert "passed --stop-above 0.001 GiB" in proc.stderr and "stopped" in proc.stderr
