@@ -20,8 +20,8 @@ import numpy as np
 
 from gdfe._validation import GdfeError, GdfeTypeError, describe
 
-__all__ = ["write_vtu", "write_series", "render_png", "write_json", "write_text", "check_creatable", "surface_faces", "boundary_quads",
-           "atomic_path", "json_default", "save_figure", "OutputFolder", "MATERIAL_CODES", "MANIFEST", "MARKER",
+__all__ = ["write_vtu", "write_series", "render_png", "write_json", "write_text", "check_creatable", "surface_faces",
+           "boundary_quads", "atomic_path", "json_default", "save_figure", "OutputFolder", "MATERIAL_CODES", "MANIFEST", "MARKER",
            "folder_state", "hex_meshio", "material_field_data", "outline_edges", "EDGE_CELLS", "MATERIAL_LABELS",
            "VIEWS"]
 
@@ -29,6 +29,15 @@ log = logging.getLogger(__name__)
 
 #: Colours of the materials in pictures (RGB 0-1): rigid grey, contracting orange/blue, shrink green.
 MATERIAL_COLOURS = np.array([[0.62, 0.62, 0.66], [0.95, 0.55, 0.15], [0.2, 0.5, 0.9], [0.3, 0.75, 0.4]])
+
+
+def _not_a_file_name(path):
+    """Why no file could be renamed onto ``path`` (``"an empty name"``, ``"a folder"``), or ``""``."""
+    if not str(path).strip():
+        return "an empty name"
+    if str(path).strip() == "." or str(path).endswith(("/", os.sep)) or Path(path).is_dir():
+        return "a folder"
+    return ""
 
 
 @contextlib.contextmanager
@@ -42,9 +51,9 @@ def atomic_path(path):
     """
     if not isinstance(path, (str, os.PathLike)):
         raise GdfeTypeError(f"path: expected the name of a file to write, got {describe(path)}")
-    if str(path).strip() in ("", ".") or str(path).endswith(("/", os.sep)) or Path(path).is_dir():
-        raise GdfeError(f"{str(path) or repr('')}: expected the name of a file to write, got "
-                        f"{'a folder' if str(path).strip() else 'an empty name'}")
+    problem = _not_a_file_name(path)
+    if problem:
+        raise GdfeError(f"{str(path) or repr('')}: expected the name of a file to write, got {problem}")
     path = Path(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -535,8 +544,12 @@ def save_figure(fig, path, **kwargs):
 
 
 def check_creatable(path, name, what="folder"):
-    """Refuse now a ``path`` that could not be written later: its nearest existing folder is a file,
-    or one this process may not write in (:class:`GdfeError` naming ``name``, the option or argument)."""
+    """Refuse now a ``path`` that could not be written later (:class:`GdfeError` naming ``name``, the option
+    or argument): its nearest existing folder is a file, or one this process may not write in; with
+    ``what="file"``, also a path no file could be renamed onto (:func:`atomic_path`'s test)."""
+    problem = _not_a_file_name(path) if what == "file" else ""
+    if problem:
+        raise GdfeError(f"{name}: expected the name of a file to write, got {problem} ({str(path)!r})")
     parent = Path(path).absolute().parent
     while not parent.exists() and parent != parent.parent:
         parent = parent.parent

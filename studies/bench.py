@@ -300,7 +300,8 @@ def _factor_skipped(name, cells):
 
 
 def _time_factorisations(A, nrhs, repeats, cells=None):
-    """Each backend's factorisation and solve of ``A`` with ``nrhs`` columns, where :func:`_factor_skipped` allows it."""
+    """Each backend's factorisation and solve of ``A`` with ``nrhs`` columns, where :func:`_factor_skipped`
+    allows it for a sheet of ``cells`` cells."""
     out = {}
     rng = np.random.default_rng(0)
     b = None

@@ -83,7 +83,8 @@ def measure(kind, n_cells, stop_above_gib=None):
     Returns a dict: the run's cells, steps, seconds, timings, energy and convergence; ``peak_rss_mib``
     (the process's maximum resident set: the larger of the kernel's high-water mark, ``ru_maxrss_mib``,
     and the sampled one, ``peak_sampled_mib``), ``peak_at_s`` and ``peak_where`` (the sampled peak's time,
-    in seconds after the simulation began, and the main thread's last gdfe frames there), ``rss_before_mib`` (with the design made).
+    in seconds after the simulation began, and the main thread's last gdfe frames there), ``rss_before_mib``
+    (with the design made).
     ``stop_above_gib`` ends the process (exit status 3) once its resident set passes it. A sheet whose
     estimate (:func:`gdfe.resources.estimate_run`) does not fit the machine is refused before it is made.
     """
@@ -118,13 +119,6 @@ def measure(kind, n_cells, stop_above_gib=None):
             "rss_before_mib": before / 2**20, "load_average": list(os.getloadavg())}
 
 
-def _check_out(path):
-    """``--out``: the name of a file this process can write (renamed into place when complete)."""
-    if not str(path).strip() or str(path).endswith(("/", os.sep)) or os.path.isdir(path):
-        raise GdfeError(f"--out: expected the name of a file to write, got {str(path)!r}")
-    check_creatable(path, "--out", what="file")
-
-
 def main(argv=None):
     p = argparse.ArgumentParser(prog="python -m studies.sheet_peak", description=__doc__.splitlines()[0])
     p.add_argument("kind", help="the benchmark's design (corrugation, fig08-twist, fig08-dome, fig08-saddle)")
@@ -134,11 +128,12 @@ def main(argv=None):
     args = p.parse_args(argv)
     try:
         if args.out is not None:  # refused before a run of an hour, not after it
-            _check_out(args.out)
+            check_creatable(args.out, "--out", what="file")
         row = measure(args.kind, args.cells, args.stop_above)
     except GdfeError as exc:
         p.error(str(exc))
     text = json.dumps(row, indent=1)
+    status = 0
     if args.out is None:
         print(text)
     else:
@@ -147,12 +142,12 @@ def main(argv=None):
         except (GdfeError, OSError) as exc:  # the record is not lost with the file: it goes to stdout
             print(text)
             print(f"sheet_peak: --out: cannot write {args.out} ({exc}); the record is above", file=sys.stderr)
-            return 1
+            status = 1
     if not row["converged"]:  # its seconds are not a solve's: the record says so, and so does the exit status
         print(f"sheet_peak: the {row['cells']:,}-cell {row['design']} did not converge in {row['iterations']} "
               f"iterations", file=sys.stderr)
-        return 1
-    return 0
+        status = 1
+    return status
 
 
 if __name__ == "__main__":

@@ -43,8 +43,11 @@ def test_an_out_that_cannot_be_written_is_refused_before_the_run(tmp_path, capsy
     monkeypatch.setattr(sheet_peak, "measure", lambda *a: pytest.fail("the run began"))
     blocker = tmp_path / "a_file"
     blocker.write_text("")
-    for out, message in [(tmp_path, "--out: expected the name of a file to write, got"),
-                         (blocker / "row.json", f"--out: cannot create the file {blocker / 'row.json'}: {blocker} is a file")]:
+    for out, message in [(tmp_path, "--out: expected the name of a file to write, got a folder"),
+                         (f"{tmp_path}/new/", "--out: expected the name of a file to write, got a folder"),
+                         ("", "--out: expected the name of a file to write, got an empty name"),
+                         (blocker / "row.json",
+                          f"--out: cannot create the file {blocker / 'row.json'}: {blocker} is a file")]:
         with pytest.raises(SystemExit) as exc:
             sheet_peak.main(["corrugation", "1e3", "--out", str(out)])
         assert exc.value.code == 2 and message in capsys.readouterr().err
@@ -71,6 +74,12 @@ def test_a_run_that_does_not_converge_says_so_and_fails(tmp_path, monkeypatch, c
     row = json.loads(out.read_text())
     assert not row["converged"] and row["iterations"] == 1
     assert "sheet_peak: the 1,024-cell corrugation did not converge in 1 iterations" in capsys.readouterr().err
+    # a record that cannot be written does not hide that the run did not converge
+    monkeypatch.setattr(sheet_peak, "write_text", lambda path, text: (_ for _ in ()).throw(OSError(28, "full")))
+    assert sheet_peak.main(["corrugation", "1e3", "--out", str(tmp_path / "other.json")]) == 1
+    captured = capsys.readouterr()
+    assert not json.loads(captured.out)["converged"]
+    assert "cannot write" in captured.err and "did not converge in 1 iterations" in captured.err
 
 
 def test_a_run_past_its_limit_is_stopped_and_says_so():
