@@ -39,6 +39,7 @@ along it are not contact).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 
 import numpy as np
@@ -318,20 +319,12 @@ class PenetrationCheck:
     def __call__(self, points) -> Penetration:
         """Check the shape ``points`` ``(n, 3)`` [mm]; see the module docstring."""
         X = check_array("points", points, shape=(self.n, 3))
-        tris, owner = self.tris, self.owner
-        tri = _Triangles(X[tris[:, 0]], X[tris[:, 1]], X[tris[:, 2]])
+        owner = self.owner
+        tri = self._triangles(X)
         bad_cells = []
 
-        # 1. crossing triangles: candidates whose centroids are closer than their radii summed, less
-        # the pairs in one window of the print that the shape provably embeds (gdfe.solver.windows)
-        good, boxes = self.windows.good(X, tri.lo, tri.hi)
-        involved = np.nonzero(self.windows.involved(good, boxes, tri.lo, tri.hi))[0]
-        found = _map(lambda pairs: self._crossings(X, tri, good, *pairs()), tri.close_pairs(involved),
-                     "crossing triangles, chunk")
-        none = [np.zeros(0, np.int64)]  # no triangle left to test: every pair proved apart
-        i = np.concatenate([f[0] for f in found] or none)
-        j = np.concatenate([f[1] for f in found] or none)
-        edges = [e for f in found for e in f[2]] or [np.zeros((0, 2), np.int64)]  # the crossing edges
+        # 1. crossing triangles
+        i, j, edges = self._crossing_pairs(X, tri)
         if i.size:
             bad_cells += [owner[i], owner[j]]
 
@@ -365,6 +358,35 @@ class PenetrationCheck:
         ncells = int(np.unique(np.concatenate(bad_cells)).size) if bad_cells else 0
         return Penetration(intersecting_pairs=int(i.size), penetrated_cells=ncells, depth_mm=float(depth),
                            min_gap_mm=gap, gap_range_mm=self.gap_range)
+
+    def crosses(self, points) -> bool:
+        """Whether the boundary surface of the shape ``points`` ``(n, 3)`` [mm] crosses itself.
+
+        The first test of :meth:`__call__` alone (crossing triangles, not the vertices inside the
+        film nor the gap): what ``contact="auto"`` asks of the shapes of a contact-free solve.
+        """
+        X = check_array("points", points, shape=(self.n, 3))
+        return self._crossing_pairs(X, self._triangles(X))[0].size > 0
+
+    def _triangles(self, X):
+        tris = self.tris
+        return _Triangles(X[tris[:, 0]], X[tris[:, 1]], X[tris[:, 2]])
+
+    def _crossing_pairs(self, X, tri):
+        """The crossing triangle pairs ``i``, ``j`` of the shape ``X`` and the ``(k, 2)`` edges that cross.
+
+        The candidates are the pairs whose centroids are closer than their radii summed, less the
+        pairs in one window of the print that the shape provably embeds (:mod:`gdfe.solver.windows`).
+        """
+        good, boxes = self.windows.good(X, tri.lo, tri.hi)
+        involved = np.nonzero(self.windows.involved(good, boxes, tri.lo, tri.hi))[0]
+        found = _map(lambda pairs: self._crossings(X, tri, good, *pairs()), tri.close_pairs(involved),
+                     "crossing triangles, chunk")
+        none = [np.zeros(0, np.int64)]  # no triangle left to test: every pair proved apart
+        i = np.concatenate([f[0] for f in found] or none)
+        j = np.concatenate([f[1] for f in found] or none)
+        edges = [e for f in found for e in f[2]] or [np.zeros((0, 2), np.int64)]
+        return i, j, edges
 
     def _crossings(self, X, tri, good, i, j):
         """The crossing pairs among candidate triangle pairs ``(i, j)``, and the edges that cross.
@@ -521,20 +543,34 @@ class _Triangles:
 
     Triangles are kept in two classes by their radius (the side faces of a film thicker than
     its cells are long and thin), so that a search's range follows the triangles it meets.
+    The normals and the classes of all triangles are made on first use: the crossing test
+    (:meth:`PenetrationCheck.crosses`) searches only the triangles the windows leave it.
     """
 
     def __init__(self, A, B, C):
         self.A, self.B, self.C = A, B, C
         self.lo = np.minimum(np.minimum(A, B), C)
         self.hi = np.maximum(np.maximum(A, B), C)
-        self.N = np.cross(B - A, C - A)  # twice the area times the unit normal
-        self.unit = self.N / np.maximum(np.linalg.norm(self.N, axis=1, keepdims=True), 1e-300)
         cen = (A + B + C) / 3.0
         self.rad = np.sqrt(np.max([_dot(A - cen, A - cen), _dot(B - cen, B - cen), _dot(C - cen, C - cen)], axis=0))
         self.rmax = float(self.rad.max())
         self.cen = cen
         self.split = 1.5 * float(np.median(self.rad))
-        self.classes = self._classes(np.arange(len(cen)))
+
+    @functools.cached_property
+    def N(self):
+        """Twice each triangle's area times its unit normal, ``(t, 3)``."""
+        return np.cross(self.B - self.A, self.C - self.A)
+
+    @functools.cached_property
+    def unit(self):
+        """Each triangle's unit normal, ``(t, 3)``."""
+        return self.N / np.maximum(np.linalg.norm(self.N, axis=1, keepdims=True), 1e-300)
+
+    @functools.cached_property
+    def classes(self):
+        """All triangles in their two classes (:meth:`_classes`)."""
+        return self._classes(np.arange(len(self.cen)))
 
     def _classes(self, idx):
         """The triangles ``idx`` in their two classes: ``(indices, k-d tree of centroids, largest radius)`` each."""

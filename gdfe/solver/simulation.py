@@ -45,14 +45,16 @@ CONTACT_LEVEL_TOL = 1e-2
 #: self-intersection (the same reason).
 CONTACT_LEVEL_ITER = 10
 #: ``contact="auto"`` tests every this many iterates of a contact-free Newton solve, and every
-#: frame but the last (the penetration check follows it), for self-intersection (the IPC
-#: Toolkit's test, which costs about a tenth of a Newton iteration), and solves with contact as
-#: soon as one crosses itself, without finishing the contact-free solve.
+#: frame but the last (the penetration check follows it), for self-intersection (the penetration
+#: check's crossing test, :meth:`PenetrationCheck.crosses`: 0.2-0.3 s at 10^5 cells, a fifth to a
+#: quarter of a Newton iteration there), and solves with contact as soon as one crosses itself,
+#: without finishing the contact-free solve.
 AUTO_CHECK_EVERY = 4
 #: Above this many cells ``contact="auto"`` does not test during the solve, only the solved shape
-#: (the penetration check, which leads to the contact solve as before): the IPC Toolkit's
-#: collision mesh holds about 2 KiB per cell, and made beside the solver's arrays it set the
-#: peak memory of the 10^6-cell corrugation (8.6 GiB against 6.4 GiB without it).
+#: (the penetration check, which leads to the contact solve as before): the check's set-up, made
+#: beside the solver's arrays for the tests, would hold its topology (vertex pairs, the cells of
+#: each vertex; 0.7 GiB at 10^6 cells) at the solve's peak. (When the tests were the IPC Toolkit's,
+#: its collision mesh, about 2 KiB per cell, set the 10^6-cell corrugation's peak: 8.6 GiB against 6.4.)
 WATCH_MAX_CELLS = 200_000
 #: With ``tol=None`` a Newton solve stops when its estimated distance to the solution is below
 #: this fraction of the part's size (the diagonal of the flat print's bounding box): far below
@@ -378,7 +380,7 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
                 max_iter=max_iter, history=history, on_drift=on_drift)
     term = Contact(design, dhat) if contact == "on" else None
     available = contact_available()
-    watch = _Watch(design, dhat) if contact == "auto" and available else None
+    watch = _Watch(design) if contact == "auto" and available else None
     timings = {}
     try:
         run = _run_frames(solver, acts, method, term,
@@ -386,7 +388,7 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
     except _Crossed as stop:
         run, pens, t_check, crossed = None, [], 0.0, stop.reason
     else:
-        pens, t_check = _check_frames(solver, run.frames)
+        pens, t_check = _check_frames(solver, run.frames, watch)
         crossed = None
         if any(p.found for p in pens):
             worst = max(pens, key=lambda p: p.depth_mm)
@@ -400,13 +402,13 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
             log.info("the contact-free solve passes through itself (%s); solving again with contact", crossed,
                      extra={"progress": {"event": "contact"}})
             timings["contact_free_solve"] = time.perf_counter() - t0
-            term = watch.surface()
+            term = Contact(design, dhat)
             cmethod = method if method.startswith("newton") else auto_method(design)
             if cmethod != method:
                 log.info("contact solve with method=%r (the contact solve needs a Newton method)", cmethod)
             method = cmethod
             run = _run_frames(solver, acts, method, term, **opts)
-            pens, t2 = _check_frames(solver, run.frames)
+            pens, t2 = _check_frames(solver, run.frames, watch)
             t_check += t2
             report = ContactReport(mode=contact, used=True, available=True, reason=crossed)
         else:
@@ -450,27 +452,32 @@ class _Watch:
     """The self-intersection test of ``contact="auto"`` on a contact-free run (see :data:`AUTO_CHECK_EVERY`).
 
     Called with the frame, the Newton iteration (None at the end of a frame) and the shape;
-    raises :class:`_Crossed` when the shape's boundary surface crosses itself (the IPC
-    Toolkit's test on the :class:`Contact` surface, which the contact solve then uses); above
-    :data:`WATCH_MAX_CELLS` cells :func:`simulate` does not hand it to the solve.
+    raises :class:`_Crossed` when the shape's boundary surface crosses itself: the crossing test
+    of the penetration check (:meth:`PenetrationCheck.crosses`), whose set-up the check after the
+    solve then uses (:func:`_check_frames`). Above :data:`WATCH_MAX_CELLS` cells :func:`simulate`
+    does not hand it to the solve.
+
+    The IPC Toolkit's collision mesh, which the contact solve needs, is not made for the test:
+    its making holds Python's interpreter lock (0.4-0.5 s of 0.5 s at 10^5 cells), and made
+    beside the multilevel start it stopped the start for that long.
     """
 
-    def __init__(self, design, dhat):
-        self.design, self.dhat = design, dhat
-        self.contact = None
+    def __init__(self, design):
+        self.design = design
+        self._check = None
         self.seconds = 0.0
 
-    def surface(self) -> Contact:
-        """The :class:`Contact` of the tests (made now where none is kept)."""
-        if self.contact is None:
-            self.contact = Contact(self.design, self.dhat)
-        return self.contact
+    def check(self) -> PenetrationCheck:
+        """The :class:`PenetrationCheck` of the tests (made now where none is kept)."""
+        if self._check is None:
+            self._check = PenetrationCheck(self.design)
+        return self._check
 
     def __call__(self, frame, iteration, V):
         if iteration is not None and iteration % AUTO_CHECK_EVERY:
             return
         t0 = time.perf_counter()
-        crosses = self.surface().crosses(V)
+        crosses = self.check().crosses(V)
         self.seconds += time.perf_counter() - t0
         if crosses:
             where = "at the end of frame %d" % frame if iteration is None else \
@@ -494,19 +501,20 @@ class _FrameRun:
     drift: dict = None
 
 
-def _check_frames(solver, frames):
+def _check_frames(solver, frames, watch=None):
     """The penetration check of every frame after the flat print, and the seconds it took with its set-up.
 
-    The check is made here, after the solve, and the solver's caches are dropped first
-    (:meth:`Solver.drop_caches`), after the contact solve too: its topology (vertex pairs, the
-    cells of each vertex) need not be held beside the solver's largest arrays (0.7 GiB at 10^6 cells).
+    The check is the one ``watch`` (a :class:`_Watch`) made for its tests, else it is made here,
+    after the solve, and the solver's caches are dropped first (:meth:`Solver.drop_caches`),
+    after the contact solve too: its topology (vertex pairs, the cells of each vertex) need not be
+    held beside the solver's largest arrays (0.7 GiB at 10^6 cells, where no watch is made).
     """
     solver.drop_caches()
     design = solver.design
     t0 = time.perf_counter()
     log.debug("checking self-penetration: %d cells, %d frames", design.n_cells, len(frames) - 1,
               extra={"progress": {"event": "check", "frame": None, "frames": len(frames) - 1}})
-    check = PenetrationCheck(design)
+    check = watch.check() if watch is not None else PenetrationCheck(design)
     pens = []
     for k, V in enumerate(frames[1:]):
         log.debug("checking self-penetration: frame %d/%d", k + 1, len(frames) - 1,
@@ -541,7 +549,7 @@ def _prepare(solver, method, a, monitor):
     """What the first frame's solve and ``monitor`` (a :class:`_Watch`, or None) make on first use from the mesh alone."""
     solver.prepare(method, a)
     if isinstance(monitor, _Watch):
-        monitor.surface()
+        monitor.check()
 
 
 def _clear_start(solver, term, init, start, seed, a, method, max_iter, depth=0):
