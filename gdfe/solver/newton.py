@@ -1331,6 +1331,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
         plain = steps.assemble(Q, Vp, activation, solve=not lazy)  # the plain step from V
         G = plain.V
         it += 1
+        g = None  # the gradient at V, where the lazy test made it
         if lazy:
             g = 2.0 * (steps.apply_L(V) - plain.b)
             move = np.zeros_like(V)
@@ -1351,7 +1352,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
         if (res <= tol and error <= STEP_TOL_FACTOR * tol) or it >= max_iter or watch.stop:
             break
         t0 = time.perf_counter()
-        grad = 2.0 * (steps.apply_L(V) - plain.b)
+        grad = 2.0 * (steps.apply_L(V) - plain.b) if g is None else g
         if contact is None:
             grad[steps.pin] = 0.0
             direction = directions(Q, S, grad, res, error=error, target=STEP_TOL_FACTOR * tol, **shape(V))

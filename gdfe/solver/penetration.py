@@ -27,6 +27,9 @@ and finds:
   touches the vertex and is centred on its normal: within 60 degrees of the normal at the
   search range ``r``, wider nearer) and is not its neighbour, within that range.
 
+:meth:`PenetrationCheck.crosses` makes the first test alone: ``contact="auto"`` asks it of the
+iterates of a contact-free solve, and the same check then checks the solved shape.
+
 The searches run in chunks (bounded memory at 10^6 cells) on the solver's threads
 (:func:`gdfe.solver.threads.workers`; 2 threads took the 10^5-cell twist's check 1.9 x faster on 2 cores);
 the answer does not depend on either.
