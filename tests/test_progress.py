@@ -162,7 +162,7 @@ def test_the_penetration_check_reports_its_chunks(caplog):
     assert "checking self-penetration: gap search" in stages
 
 
-@pytest.mark.parametrize("run", ["turn", "recycle3", "windows", "steps", "medians", "inplace", "coarse40k"])
+@pytest.mark.parametrize("run", ["turn", "recycle3", "windows", "steps", "medians", "inplace", "coarse40k", "watch"])
 def test_the_time_estimate_is_within_its_stated_factor_of_the_benchmark(run):
     """``gdfe.resources.CALIBRATION`` says "half to twice their estimated time": every sheet of the latest
     benchmarks of the default solver (10^3 to 10^6 cells, the corrugation and the Figure 8 plates)
@@ -194,7 +194,7 @@ def test_the_memory_estimate_covers_every_measured_peak_of_the_large_sheets():
     """An estimate that says a run fits must not be below what the run takes: every peak measured on
     the latest benchmark (7.8*10^4 to 10^6 cells) and the 4*10^6 and 785 456-cell runs lies under its
     estimate, and the estimate is not more than 1.4 times any of them."""
-    sheets = json.loads((ROOT / "docs/bench/coarse40k/bench.json").read_text())["sheets"]
+    sheets = json.loads((ROOT / "docs/bench/watch/bench.json").read_text())["sheets"]
     rows = [s for s in sheets if s["cells"] >= 50_000] + _measured_large_runs()
     assert len(rows) == 7
     for row in rows:
