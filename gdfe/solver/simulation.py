@@ -121,7 +121,8 @@ class Result:
     timings : dict
         Seconds spent in the factorisation, the orientation and assembly steps, the
         Newton steps (``"newton"``), the multilevel start (``"start"``), the penetration
-        checks with their set-up (``"penetration_check"``, with ``contact="auto"``'s crossing tests), and with
+        checks (``"penetration_check"``, with ``contact="auto"``'s crossing tests, and with the check's
+        set-up where it is made after the solve, not beside the multilevel start), and with
         contact the barrier (``"barrier"``),
         collision detection (``"ccd"``) and the contact-free solve that came first
         (``"contact_free_solve"``, ``contact="auto"``).
@@ -458,8 +459,8 @@ class _Watch:
     does not hand it to the solve.
 
     The IPC Toolkit's collision mesh, which the contact solve needs, is not made for the test:
-    its making holds Python's interpreter lock (0.4-0.5 s of 0.5 s at 10^5 cells), and made
-    beside the multilevel start it stopped the start for that long.
+    its making holds Python's interpreter lock (about 0.5 s at 10^5 cells, nearly all of it), and
+    made beside the multilevel start it stopped the start for that long.
     """
 
     def __init__(self, design):
@@ -504,10 +505,12 @@ class _FrameRun:
 def _check_frames(solver, frames, watch=None):
     """The penetration check of every frame after the flat print, and the seconds it took with its set-up.
 
-    The check is the one ``watch`` (a :class:`_Watch`) made for its tests, else it is made here,
-    after the solve, and the solver's caches are dropped first (:meth:`Solver.drop_caches`),
-    after the contact solve too: its topology (vertex pairs, the cells of each vertex) need not be
-    held beside the solver's largest arrays (0.7 GiB at 10^6 cells, where no watch is made).
+    The check is made once: by ``watch`` (a :class:`_Watch`) where its tests made it during the
+    solve, else here (kept by the watch where there is one). The solver's caches are dropped first
+    (:meth:`Solver.drop_caches`), after the contact solve too: a check made here need not hold its
+    topology (vertex pairs, the cells of each vertex; 0.7 GiB at 10^6 cells) beside the solver's
+    largest arrays. Above :data:`WATCH_MAX_CELLS` cells the watch tests nothing during the solve, so
+    the check is always made here.
     """
     solver.drop_caches()
     design = solver.design
