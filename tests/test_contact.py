@@ -417,6 +417,22 @@ def test_auto_stops_the_contact_free_solve_where_it_crosses_itself():
     assert "iteration 8 of frame 1" in gdfe.simulate(des).contact.reason and off.iterations > 8
 
 
+def test_auto_checks_every_frame_once(monkeypatch):
+    """The watch's check at the end of a frame is that frame's check after the solve: each of three frames is
+    tested for crossings once, and its check says what a fresh check of the frame says."""
+    _ipctk()
+    tested = []  # every shape the crossing test ran on, whether for the watch or for the check
+    crossing = PenetrationCheck._crossing_pairs
+    monkeypatch.setattr(PenetrationCheck, "_crossing_pairs", lambda self, X, tri: tested.append(X.copy())
+                        or crossing(self, X, tri))
+    res = gdfe.simulate(gdfe.hinge(2.6, d=0.33), steps=3)
+    assert not res.contact.used
+    for V in res.frames[1:]:
+        assert sum(np.array_equal(V, X) for X in tested) == 1
+    fresh = PenetrationCheck(res.design)
+    assert [fresh(V) for V in res.frames[1:]] == res.frame_penetration
+
+
 def test_auto_above_the_watch_limit_tests_only_the_solved_shape(monkeypatch):
     """Above WATCH_MAX_CELLS no surface is made during the solve; the check of the result leads to contact."""
     _ipctk()

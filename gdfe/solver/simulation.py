@@ -389,7 +389,7 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
     except _Crossed as stop:
         run, pens, t_check, crossed = None, [], 0.0, stop.reason
     else:
-        pens, t_check = _check_frames(solver, run.frames, watch)
+        pens, t_check = _check_frames(solver, run.frames, watch, known=None if watch is None else watch.frames)
         crossed = None
         if any(p.found for p in pens):
             worst = max(pens, key=lambda p: p.depth_mm)
@@ -455,8 +455,9 @@ class _Watch:
     Called with the frame, the Newton iteration (None at the end of a frame) and the shape;
     raises :class:`_Crossed` when the shape's boundary surface crosses itself: the crossing test
     of the penetration check (:meth:`PenetrationCheck.crosses`), whose set-up the check after the
-    solve then uses (:func:`_check_frames`). Above :data:`WATCH_MAX_CELLS` cells :func:`simulate`
-    does not hand it to the solve.
+    solve then uses (:func:`_check_frames`). At the end of a frame the shape is the frame's own, so
+    it gets the whole check there, kept in :attr:`frames` for the check after the solve. Above
+    :data:`WATCH_MAX_CELLS` cells :func:`simulate` does not hand it to the solve.
 
     The IPC Toolkit's collision mesh, which the contact solve needs, is not made for the test:
     its making holds Python's interpreter lock (about 0.5 s at 10^5 cells, nearly all of it), and
@@ -467,6 +468,7 @@ class _Watch:
         self.design = design
         self._check = None
         self.seconds = 0.0
+        self.frames = {}  # frame -> its Penetration, for the frames checked at their end
 
     def check(self) -> PenetrationCheck:
         """The :class:`PenetrationCheck` of the tests (made now where none is kept)."""
@@ -478,7 +480,11 @@ class _Watch:
         if iteration is not None and iteration % AUTO_CHECK_EVERY:
             return
         t0 = time.perf_counter()
-        crosses = self.check().crosses(V)
+        if iteration is None:
+            self.frames[frame] = self.check()(V)
+            crosses = self.frames[frame].intersecting_pairs > 0
+        else:
+            crosses = self.check().crosses(V)
         self.seconds += time.perf_counter() - t0
         if crosses:
             where = "at the end of frame %d" % frame if iteration is None else \
@@ -502,8 +508,11 @@ class _FrameRun:
     drift: dict = None
 
 
-def _check_frames(solver, frames, watch=None):
+def _check_frames(solver, frames, watch=None, known=None):
     """The penetration check of every frame after the flat print, and the seconds it took with its set-up.
+
+    ``known`` (frame -> :class:`Penetration`, :attr:`_Watch.frames`): the frames of these ``frames``
+    that the watch checked at their end, not checked again.
 
     The check is made once: by ``watch`` (a :class:`_Watch`) where its tests made it during the
     solve, else here (kept by the watch where there is one). The solver's caches are dropped first
@@ -522,7 +531,7 @@ def _check_frames(solver, frames, watch=None):
     for k, V in enumerate(frames[1:]):
         log.debug("checking self-penetration: frame %d/%d", k + 1, len(frames) - 1,
                   extra={"progress": {"event": "check", "frame": k + 1, "frames": len(frames) - 1}})
-        pens.append(check(V))
+        pens.append(known[k + 1] if known and k + 1 in known else check(V))
     return pens, time.perf_counter() - t0
 
 
