@@ -7,7 +7,7 @@ the frames it keeps; its time per frame follows a power law in the cell count
 measurements on 2 cores (``gdfe bench``, 10^3 to 10^6 cells, and the 4*10^6-cell sheet of
 ``docs/bench/sheet4e6``): they are estimates, meant to decide before a run whether it fits the
 machine and whether it is long enough to ask first. The memory is an upper envelope of the
-measured peaks (1.05-1.28 times each from 7.8*10^4 cells up); the time is within a factor of 2
+measured peaks (1.05-1.29 times each from 7.8*10^4 cells up); the time is within a factor of 2
 of the benchmark's sheets, and longer than a design that converges in a few steps takes (the
 785 456-cell Figure 8 dome, 4 steps: a fifth of its estimate). Thin cells (``nz`` large)
 converge more slowly (:func:`thin_factor`).
@@ -47,12 +47,12 @@ MESH_BYTES_PER_CELL = 600
 #: Peak memory of a solve: a base and bytes per cell (the design, the solver's systems and
 #: multigrid, the Newton-CG Hessian and vectors, the penetration check's triangles), an upper
 #: envelope of the peaks measured on 2 cores (ru_maxrss of one process, the design inside):
-#: the 10^5 sheets 657-809 MiB and the 10^6 corrugation 5 611 MiB (``docs/bench/watch``), the
-#: 785 456-cell Figure 8 dome 4 570 MiB and the 4*10^6 corrugation 20 274 MiB (``docs/bench/sheet4e6``).
-#: The estimate is 1.05-1.28 times each (the large dome nearest). The fit before, 600 MiB and
-#: 5 600 B, was 1.41-1.56 times the 10^5 sheets once ``contact="auto"`` no longer held the IPC
-#: Toolkit's collision mesh through their solve; the one before that, 100 MiB and 7 000 B, said
-#: 26.5 GiB at 4*10^6 cells and kept that run off this 23.5 GiB machine.
+#: the 10^5 sheets 651-809 MiB and the 10^6 corrugation 5 556-5 611 MiB (``docs/bench/watch`` and
+#: ``watch2``), the 785 456-cell Figure 8 dome 4 570 MiB and the 4*10^6 corrugation 20 274 MiB
+#: (``docs/bench/sheet4e6``). The estimate is 1.05-1.29 times each (the large dome nearest). The
+#: fit before, 600 MiB and 5 600 B, was 1.41-1.56 times the 10^5 sheets once ``contact="auto"`` no
+#: longer held the IPC Toolkit's collision mesh through their solve; the one before that, 100 MiB
+#: and 7 000 B, said 26.5 GiB at 4*10^6 cells and kept that run off this 23.5 GiB machine.
 #: (The base is the envelope's intercept, not the interpreter's own: a 1 024-cell run peaks at 115 MiB.)
 BASE_BYTES = 400 * 2**20
 SOLVE_BYTES_PER_CELL = 5_800
