@@ -372,6 +372,7 @@ class PenetrationCheck:
         return self._crossing_pairs(X, self._triangles(X))[0].size > 0
 
     def _triangles(self, X):
+        """The boundary triangles at the shape ``X`` (:class:`_Triangles`)."""
         tris = self.tris
         return _Triangles(X[tris[:, 0]], X[tris[:, 1]], X[tris[:, 2]])
 
