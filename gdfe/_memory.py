@@ -1,35 +1,71 @@
-"""Giving freed memory back to the operating system between the steps of a large solve.
+"""The C heap during a large solve: freed memory given back between steps, large arrays reused within them.
 
 glibc's ``malloc`` serves blocks below its mmap threshold from its heap, and raises that
 threshold (up to 32 MiB) each time a larger block is freed; the chunked temporaries of a
 large solve (tens of MiB each) then come from the heap, and what they leave free there stays
 resident. On the 2.5 x 10^5-cell corrugation the peak resident set of a simulation was
 3.4 GiB that way; ``malloc_trim`` after each Newton step brought it to 2.8 GiB in the same
-time (121 s against 119 s). Elsewhere (another C library, another system) :func:`release`
-does nothing.
+time (121 s against 119 s): :func:`release`.
+
+Above those 32 MiB every block is the other way round: fresh memory mapped from the system
+at each request, its pages faulted in (and zeroed) at first use, and unmapped when freed. A
+10^6-cell sheet has 2 x 10^6 vertices, so every ``(n, 3)`` array its solve makes (a Hessian
+product, a V-cycle's residual, a plain step) is 48 MiB, new memory each time: in five Newton
+steps from a kept start the process spent 35-37 s in the kernel against 113-115 s in its own
+code. :func:`heap_blocks` raises the threshold above such arrays for the length of a solve
+(``mallopt``), so that they are served from the heap and the next one reuses what the last
+left free. Elsewhere (another C library, another system) both do nothing.
 """
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import ctypes.util
 import functools
+import threading
 
-__all__ = ["release"]
+__all__ = ["DYNAMIC_MMAP_MAX", "heap_blocks", "release"]
+
+#: The mmap threshold glibc's dynamic rule stops at on 64-bit systems (its ``DEFAULT_MMAP_THRESHOLD_MAX``):
+#: blocks above it are mapped afresh at every request, and :func:`heap_blocks` acts only above it.
+DYNAMIC_MMAP_MAX = 32 * 2**20
+#: ``mallopt``'s parameters (glibc's ``malloc.h``).
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+
+_held = []  # the sizes asked for by the heap_blocks now open (in any thread)
+_lock = threading.Lock()
+
+
+@functools.lru_cache(maxsize=1)
+def _libc():
+    """The C library, or None where it cannot be loaded."""
+    try:
+        return ctypes.CDLL(ctypes.util.find_library("c"))
+    except (OSError, TypeError):
+        return None
+
+
+def _function(name, argtypes):
+    """The C library's function ``name``, or None where it has none."""
+    libc = _libc()
+    fn = getattr(libc, name, None) if libc is not None else None
+    if fn is not None:
+        fn.argtypes = argtypes
+        fn.restype = ctypes.c_int
+    return fn
 
 
 @functools.lru_cache(maxsize=1)
 def _malloc_trim():
     """glibc's ``malloc_trim``, or None where the C library has none."""
-    name = ctypes.util.find_library("c")
-    try:
-        libc = ctypes.CDLL(name)
-        trim = libc.malloc_trim
-    except (OSError, AttributeError, TypeError):
-        return None
-    trim.argtypes = [ctypes.c_size_t]
-    trim.restype = ctypes.c_int
-    return trim
+    return _function("malloc_trim", [ctypes.c_size_t])
+
+
+@functools.lru_cache(maxsize=1)
+def _mallopt():
+    """glibc's ``mallopt``, or None where the C library has none."""
+    return _function("mallopt", [ctypes.c_int, ctypes.c_int])
 
 
 def release() -> bool:
@@ -39,3 +75,43 @@ def release() -> bool:
         return False
     trim(0)
     return True
+
+
+def _set_thresholds(mmap_bytes):
+    """The mmap threshold at ``mmap_bytes`` and the trim threshold at twice it (glibc's own ratio)."""
+    mallopt = _mallopt()
+    mallopt(_M_MMAP_THRESHOLD, int(mmap_bytes))
+    mallopt(_M_TRIM_THRESHOLD, 2 * int(mmap_bytes))
+
+
+@contextlib.contextmanager
+def heap_blocks(nbytes):
+    """Serve blocks of up to ``nbytes`` bytes from the C heap inside the ``with`` block, reused, not mapped afresh.
+
+    Does nothing where ``nbytes`` is at most :data:`DYNAMIC_MMAP_MAX` (glibc's dynamic threshold
+    serves such blocks from its heap already) or the C library has no ``mallopt``. The threshold
+    is the process's: blocks open in several threads hold the largest size asked for, and when
+    the last closes the thresholds are set to where glibc's dynamic rule leaves them after a
+    large block has been freed (:data:`DYNAMIC_MMAP_MAX`, trim at twice it), and the heap's free
+    memory is returned (:func:`release`). The arithmetic is not touched, so no result changes.
+
+    Yields
+    ------
+    bool
+        Whether the threshold was raised.
+    """
+    nbytes = int(nbytes)
+    if nbytes <= DYNAMIC_MMAP_MAX or _mallopt() is None:
+        yield False
+        return
+    with _lock:
+        _held.append(nbytes)
+        _set_thresholds(max(_held))
+    try:
+        yield True
+    finally:
+        with _lock:
+            _held.remove(nbytes)
+            _set_thresholds(max(_held) if _held else DYNAMIC_MMAP_MAX)
+            if not _held:
+                release()

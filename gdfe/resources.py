@@ -35,12 +35,13 @@ from __future__ import annotations
 import dataclasses
 import os
 
+from gdfe import _memory
 from gdfe._validation import GdfeError
 
 __all__ = ["Estimate", "estimate_run", "estimate_design", "machine_memory", "check_design_cells", "check_run",
            "check_grid", "check_work", "thin_factor", "format_bytes", "format_seconds", "LARGE_SECONDS",
            "LARGE_MEMORY_FRACTION",
-           "PROGRESS_SECONDS", "CALIBRATION"]
+           "PROGRESS_SECONDS", "CALIBRATION", "solve_heap"]
 
 #: Bytes per cell of a design's mesh and cell data (points, hexahedra, indices, materials).
 MESH_BYTES_PER_CELL = 600
@@ -274,6 +275,19 @@ def check_run(design, steps):
         raise GdfeError(f"design, steps: expected a simulation that fits in memory, got {est.text()}; "
                         f"use a coarser design or fewer steps")
     return est
+
+
+def solve_heap(design):
+    """The C heap's setting for a simulation of ``design``, a context manager (:func:`gdfe._memory.heap_blocks`).
+
+    Blocks up to a 3 x 3 matrix of doubles per vertex or per cell, whichever are more (the
+    cells' rotations; three ``(n, 3)`` arrays), are served from the heap and reused. Of a
+    10^6-cell sheet's arrays that covers the vertices' (48 MiB) and the cells' rotations (72 MiB)
+    every Newton step makes, not its Jacobian's values (576 MiB). :func:`gdfe.simulate` runs
+    inside it; a measurement of a simulation's parts (``gdfe bench``'s lower bound) runs inside
+    it to be measured alike.
+    """
+    return _memory.heap_blocks(72 * max(design.mesh.n_points, design.n_cells))
 
 
 def check_work(name, memory_bytes, what, remedy, seconds=None, logger=None):

@@ -17,7 +17,7 @@ import numpy as np
 from gdfe._validation import GdfeError, check_array, check_choice, check_instance, check_int, check_positive
 from gdfe.design import Design, check_one_piece
 from gdfe.model import as_model
-from gdfe.resources import check_run
+from gdfe.resources import check_run, solve_heap
 from gdfe.solver.contact import CONTACT_MODES, Contact, ContactReport, contact_available
 from gdfe.solver.methods import METHODS, Solver, auto_method, check_tol
 from gdfe.solver.newton import ON_DRIFT, STEP_TOL_FACTOR
@@ -374,6 +374,15 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
     from gdfe.solver.device import resolve
 
     resolve(device)  # a bad name, or "gpu" without one, is refused before the set-up
+    with solve_heap(design):  # a large solve's arrays reused from the C heap, not mapped afresh at every use
+        return _solve_and_check(design, method, contact, dhat, init, start, steps, tol, max_iter, history, seed,
+                                on_drift, device)
+
+
+def _solve_and_check(design, method, contact, dhat, init, start, steps, tol, max_iter, history, seed, on_drift,
+                     device):
+    """:func:`simulate` after its arguments are checked: the frames solved, checked for self-penetration,
+    solved again with contact where ``contact="auto"`` finds a crossing, and the :class:`Result`."""
     t0 = time.perf_counter()
     solver = Solver(design, device=device)
     acts = np.linspace(0.0, 1.0, steps + 1)
