@@ -48,9 +48,10 @@ MESH_BYTES_PER_CELL = 600
 #: Peak memory of a solve: a base and bytes per cell (the design, the solver's systems and
 #: multigrid, the Newton-CG Hessian and vectors, the penetration check's triangles), an upper
 #: envelope of the peaks measured on 2 cores (ru_maxrss of one process, the design inside):
-#: the 10^5 sheets 651-809 MiB and the 10^6 corrugation 5 556-5 611 MiB (``docs/bench/watch`` and
-#: ``watch2``), the 785 456-cell Figure 8 dome 4 570 MiB and the 4*10^6 corrugation 20 274 MiB
-#: (``docs/bench/sheet4e6``). The estimate is 1.05-1.29 times each (the large dome nearest). The
+#: the 10^5 sheets 651-809 MiB and the 10^6 corrugation 5 556-5 744 MiB (``docs/bench/watch``,
+#: ``watch2`` and ``heap``, the last with the C heap's setting of :func:`solve_heap`), the 785 456-cell
+#: Figure 8 dome 4 570 MiB and the 4*10^6 corrugation 20 274 MiB (``docs/bench/sheet4e6``, before
+#: that setting). The estimate is 1.05-1.29 times each (the 10^6 sheet with the setting nearest). The
 #: fit before, 600 MiB and 5 600 B, was 1.41-1.56 times the 10^5 sheets once ``contact="auto"`` no
 #: longer held the IPC Toolkit's collision mesh through their solve; the one before that, 100 MiB
 #: and 7 000 B, said 26.5 GiB at 4*10^6 cells and kept that run off this 23.5 GiB machine.
