@@ -91,9 +91,11 @@ def heap_blocks(nbytes):
     Does nothing where ``nbytes`` is at most :data:`DYNAMIC_MMAP_MAX` (glibc's dynamic threshold
     serves such blocks from its heap already) or the C library has no ``mallopt``. The threshold
     is the process's: blocks open in several threads hold the largest size asked for, and when
-    the last closes the thresholds are set to where glibc's dynamic rule leaves them after a
-    large block has been freed (:data:`DYNAMIC_MMAP_MAX`, trim at twice it), and the heap's free
-    memory is returned (:func:`release`). The arithmetic is not touched, so no result changes.
+    the last closes the thresholds are set to the largest glibc's dynamic rule gives them
+    (:data:`DYNAMIC_MMAP_MAX`, trim at twice it; it reaches them once a block that large has been
+    freed, as in any large solve), and the heap's free memory is returned (:func:`release`). The
+    rule itself is not restored: glibc keeps thresholds fixed once they are set. The arithmetic
+    is not touched, so no result changes.
 
     Yields
     ------
