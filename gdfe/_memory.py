@@ -32,6 +32,7 @@ __all__ = ["DYNAMIC_MMAP_MAX", "heap_blocks", "release"]
 DYNAMIC_MMAP_MAX = 32 * 2**20
 #: ``mallopt``'s parameters (glibc's ``malloc.h``).
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+_INT_MAX = 2**31 - 1
 
 _held = []  # the sizes asked for by the heap_blocks now open (in any thread)
 _lock = threading.Lock()
@@ -78,10 +79,12 @@ def release() -> bool:
 
 
 def _set_thresholds(mmap_bytes):
-    """The mmap threshold at ``mmap_bytes`` and the trim threshold at twice it (glibc's own ratio)."""
+    """The mmap threshold at ``mmap_bytes`` and the trim threshold at twice it (glibc's own ratio), each at most
+    the largest C ``int`` (``mallopt`` takes one); whether the C library took both."""
     mallopt = _mallopt()
-    mallopt(_M_MMAP_THRESHOLD, int(mmap_bytes))
-    mallopt(_M_TRIM_THRESHOLD, 2 * int(mmap_bytes))
+    mmap_bytes = min(int(mmap_bytes), _INT_MAX)
+    took = mallopt(_M_MMAP_THRESHOLD, mmap_bytes)
+    return bool(took) & bool(mallopt(_M_TRIM_THRESHOLD, min(2 * mmap_bytes, _INT_MAX)))
 
 
 @contextlib.contextmanager
@@ -89,7 +92,8 @@ def heap_blocks(nbytes):
     """Serve blocks of up to ``nbytes`` bytes from the C heap inside the ``with`` block, reused, not mapped afresh.
 
     Does nothing where ``nbytes`` is at most :data:`DYNAMIC_MMAP_MAX` (glibc's dynamic threshold
-    serves such blocks from its heap already) or the C library has no ``mallopt``. The threshold
+    serves such blocks from its heap already) or the C library has no ``mallopt`` (or one that
+    refuses it). The threshold
     is the process's: blocks open in several threads hold the largest size asked for, and when
     the last closes the thresholds are set to the largest glibc's dynamic rule gives them
     (:data:`DYNAMIC_MMAP_MAX`, trim at twice it; it reaches them once a block that large has been
@@ -100,7 +104,7 @@ def heap_blocks(nbytes):
     Yields
     ------
     bool
-        Whether the threshold was raised.
+        Whether the threshold was raised (the C library took it).
     """
     nbytes = int(nbytes)
     if nbytes <= DYNAMIC_MMAP_MAX or _mallopt() is None:
@@ -108,9 +112,9 @@ def heap_blocks(nbytes):
         return
     with _lock:
         _held.append(nbytes)
-        _set_thresholds(max(_held))
+        raised = _set_thresholds(max(_held))
     try:
-        yield True
+        yield raised
     finally:
         with _lock:
             _held.remove(nbytes)

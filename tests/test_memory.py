@@ -96,6 +96,20 @@ def test_threads_share_the_held_sizes(fake):
     assert fake.thresholds() == (32 * MiB, 64 * MiB)
 
 
+def test_the_thresholds_are_at_most_a_c_int(fake):
+    """``mallopt`` takes a C ``int``: a larger size is not passed on wrapped round to a small one."""
+    with _memory.heap_blocks(3 * 2**30) as raised:
+        assert raised is True
+        assert fake.thresholds() == (2**31 - 1, 2**31 - 1)
+
+
+def test_a_c_library_that_refuses_says_so(fake, monkeypatch):
+    monkeypatch.setattr(_memory, "_mallopt", lambda: lambda param, value: 0)  # a stub, as some C libraries have
+    with _memory.heap_blocks(100 * MiB) as raised:
+        assert raised is False
+    assert _memory._held == []
+
+
 def test_without_mallopt_nothing_is_done(monkeypatch):
     monkeypatch.setattr(_memory, "_mallopt", lambda: None)
     with _memory.heap_blocks(100 * MiB) as raised:
