@@ -10,7 +10,7 @@ time (121 s against 119 s): :func:`release`.
 Above those 32 MiB every block is the other way round: fresh memory mapped from the system
 at each request, its pages faulted in (and zeroed) at first use, and unmapped when freed. A
 10^6-cell sheet has 2 x 10^6 vertices, so every ``(n, 3)`` array its solve makes (a Hessian
-product, a V-cycle's residual, a plain step) is 48 MiB, new memory each time: in five Newton
+product, a V-cycle's residual, a plain step) is 46 MiB, new memory each time: in five Newton
 steps from a kept start the process spent 35-37 s in the kernel against 113-115 s in its own
 code. :func:`heap_blocks` raises the threshold above such arrays for the length of a solve
 (``mallopt``), so that they are served from the heap and the next one reuses what the last

@@ -283,8 +283,8 @@ def solve_heap(design):
 
     Blocks up to a 3 x 3 matrix of doubles per vertex or per cell, whichever are more (the
     cells' rotations; three ``(n, 3)`` arrays), are served from the heap and reused. Of a
-    10^6-cell sheet's arrays that covers the vertices' (48 MiB) and the cells' rotations (72 MiB)
-    every Newton step makes, not its Jacobian's values (576 MiB). :func:`gdfe.simulate` runs
+    10^6-cell sheet's arrays that covers the vertices' (46 MiB) and the cells' rotations (69 MiB)
+    every Newton step makes, not its Jacobian's values (549 MiB). :func:`gdfe.simulate` runs
     inside it; a measurement of a simulation's parts (``gdfe bench``'s lower bound) runs inside
     it to be measured alike.
     """
