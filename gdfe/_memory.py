@@ -23,6 +23,7 @@ import contextlib
 import ctypes
 import ctypes.util
 import functools
+import os
 import threading
 
 __all__ = ["DYNAMIC_MMAP_MAX", "heap_blocks", "release"]
@@ -78,6 +79,14 @@ def release() -> bool:
     return True
 
 
+def _chosen_by_the_user():
+    """Whether this process's environment sets glibc's mmap or trim threshold itself (read by glibc at start)."""
+    if any(os.environ.get(name) for name in ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_")):
+        return True
+    tunables = os.environ.get("GLIBC_TUNABLES", "")
+    return "malloc.mmap_threshold" in tunables or "malloc.trim_threshold" in tunables
+
+
 def _set_thresholds(mmap_bytes):
     """The mmap threshold at ``mmap_bytes`` and the trim threshold at twice it (glibc's own ratio), each at most
     the largest C ``int`` (``mallopt`` takes one); whether the C library took both."""
@@ -92,8 +101,10 @@ def heap_blocks(nbytes):
     """Serve blocks of up to ``nbytes`` bytes from the C heap inside the ``with`` block, reused, not mapped afresh.
 
     Does nothing where ``nbytes`` is at most :data:`DYNAMIC_MMAP_MAX` (glibc's dynamic threshold
-    serves such blocks from its heap already) or the C library has no ``mallopt`` (or one that
-    refuses it). The threshold
+    serves such blocks from its heap already), where the C library has no ``mallopt`` (or one that
+    refuses it), and where the process's environment sets the thresholds itself
+    (``MALLOC_MMAP_THRESHOLD_``, ``MALLOC_TRIM_THRESHOLD_``, or either in ``GLIBC_TUNABLES``): a
+    choice made there is not overwritten, during the block or after it. The threshold
     is the process's: blocks open in several threads hold the largest size asked for, and when
     the last closes the thresholds are set to the largest glibc's dynamic rule gives them
     (:data:`DYNAMIC_MMAP_MAX`, trim at twice it; it reaches them once a block that large has been
@@ -107,7 +118,7 @@ def heap_blocks(nbytes):
         Whether the threshold was raised (the C library took it).
     """
     nbytes = int(nbytes)
-    if nbytes <= DYNAMIC_MMAP_MAX or _mallopt() is None:
+    if nbytes <= DYNAMIC_MMAP_MAX or _mallopt() is None or _chosen_by_the_user():
         yield False
         return
     with _lock:

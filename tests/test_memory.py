@@ -37,6 +37,8 @@ class _FakeLibc:
 @pytest.fixture
 def fake(monkeypatch):
     libc = _FakeLibc()
+    for name in ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "GLIBC_TUNABLES"):  # no choice of the user's here
+        monkeypatch.delenv(name, raising=False)
     monkeypatch.setattr(_memory, "_mallopt", lambda: libc.mallopt)
     monkeypatch.setattr(_memory, "_malloc_trim", lambda: libc.trim)
     return libc
@@ -110,6 +112,22 @@ def test_a_c_library_that_refuses_says_so(fake, monkeypatch):
     assert _memory._held == []
 
 
+@pytest.mark.parametrize("name, value", [("MALLOC_MMAP_THRESHOLD_", "1048576"), ("MALLOC_TRIM_THRESHOLD_", "0"),
+                                         ("GLIBC_TUNABLES", "glibc.malloc.check=0:glibc.malloc.mmap_threshold=65536")])
+def test_thresholds_the_environment_chose_are_left_alone(fake, monkeypatch, name, value):
+    """A threshold set in the process's environment is the user's: not raised, and not set to another value after."""
+    monkeypatch.setenv(name, value)
+    with _memory.heap_blocks(100 * MiB) as raised:
+        assert raised is False
+    assert fake.calls == []
+
+
+def test_other_tunables_do_not_count_as_a_choice(fake, monkeypatch):
+    monkeypatch.setenv("GLIBC_TUNABLES", "glibc.malloc.arena_max=1")
+    with _memory.heap_blocks(100 * MiB) as raised:
+        assert raised is True
+
+
 def test_without_mallopt_nothing_is_done(monkeypatch):
     monkeypatch.setattr(_memory, "_mallopt", lambda: None)
     with _memory.heap_blocks(100 * MiB) as raised:
@@ -134,7 +152,9 @@ def test_the_heap_threshold_changes_no_result():
     """The same solve, with the threshold raised by the C library (where it has ``mallopt``) and without: the same bits."""
     design = gdfe.from_masks(*mask_sheet(400), SHEET_PIXEL, SHEET_R, h=H, nz=1)
     plain = gdfe.simulate(design, contact="off")
-    with _memory.heap_blocks(64 * MiB):
+    with _memory.heap_blocks(64 * MiB) as raised:
         heaped = gdfe.simulate(design, contact="off")
+    # the C library's own mallopt took both thresholds wherever it has one (glibc here), unless the environment chose
+    assert raised is (_memory._mallopt() is not None and not _memory._chosen_by_the_user())
     assert np.array_equal(plain.points, heaped.points)
     assert plain.energy == heaped.energy and plain.iterations == heaped.iterations
