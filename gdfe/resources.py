@@ -5,7 +5,7 @@ grows by about :data:`SOLVE_BYTES_PER_CELL` per cell over a base of :data:`BASE_
 the frames it keeps; its time per frame follows a power law in the cell count
 (:data:`SECONDS_AT`, :data:`TIME_EXPONENTS`). The constants are fitted to the benchmark's
 measurements on 2 cores (``gdfe bench``, 10^3 to 10^6 cells, and the 4*10^6-cell sheet of
-``docs/bench/sheet4e6``): they are estimates, meant to decide before a run whether it fits the
+``docs/bench/sheet4e6`` and ``sheet4e6_heap``): they are estimates, meant to decide before a run whether it fits the
 machine and whether it is long enough to ask first. The memory is an upper envelope of the
 measured peaks (1.05-1.29 times each from 7.8*10^4 cells up); the time is within a factor of 2
 of the benchmark's sheets, and longer than a design that converges in a few steps takes (the
@@ -51,7 +51,8 @@ MESH_BYTES_PER_CELL = 600
 #: the 10^5 sheets 651-809 MiB and the 10^6 corrugation 5 556-5 744 MiB (``docs/bench/watch``,
 #: ``watch2`` and ``heap``, the last with the C heap's setting of :func:`solve_heap`), the 785 456-cell
 #: Figure 8 dome 4 570 MiB and the 4*10^6 corrugation 20 274 MiB (``docs/bench/sheet4e6``, before
-#: that setting). The estimate is 1.05-1.29 times each (the 10^6 sheet with the setting nearest). The
+#: that setting) and 20 390 MiB (``sheet4e6_heap``, with it). The estimate is 1.05-1.29 times each
+#: (the 10^6 sheet with the setting nearest). The
 #: fit before, 600 MiB and 5 600 B, was 1.41-1.56 times the 10^5 sheets once ``contact="auto"`` no
 #: longer held the IPC Toolkit's collision mesh through their solve; the one before that, 100 MiB
 #: and 7 000 B, said 26.5 GiB at 4*10^6 cells and kept that run off this 23.5 GiB machine.
@@ -63,8 +64,8 @@ SOLVE_BYTES_PER_CELL = 5_800
 #: (docs/bench/turn, recycle3 and windows: 1.16-1.47 s at 10^4 cells, 12.7-16.8 s at 10^5,
 #: 508-634 s at 10^6; the fit gives 13.9 s and 593 s). The Figure 8 plates took 0.5-1.1 times the
 #: corrugation's time at 10^5 cells. (The fit before, (1.60 s, 1.21, 1.86), was of a slower solver:
-#: it said 31 min for the 10^6 sheet's 8-10.) The 4*10^6-cell corrugation (docs/bench/sheet4e6) took 74 min
-#: against the 1.6 h it gives.
+#: it said 31 min for the 10^6 sheet's 8-10.) The 4*10^6-cell corrugation (docs/bench/sheet4e6 and
+#: sheet4e6_heap) took 74 and 75 min against the 1.6 h it gives.
 SECONDS_AT = (1e4, 1.30)
 TIME_EXPONENTS = ((1e5, 1.03), (float("inf"), 1.63))
 #: Seconds every frame costs whatever its size (set-up, the penetration check, Python).

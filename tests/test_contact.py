@@ -144,22 +144,57 @@ def _brute_force_facing(check, X):
     return vi[ok], tj[ok], dist[ok]
 
 
-@pytest.mark.parametrize("gap", [0.012, 0.04])
-def test_gap_of_a_rolled_strip_equals_the_brute_force_one(gap):
-    """Curved faces facing each other across ``gap``: the searches and their prefilter lose no facing pair."""
+@pytest.mark.parametrize("quads", [True, False])
+@pytest.mark.parametrize("gap, pixel", [(0.012, 0.1), (0.04, 0.1), (0.012, 0.04)])
+def test_gap_of_a_rolled_strip_equals_the_brute_force_one(gap, pixel, quads):
+    """Curved faces facing each other across ``gap``: the searches (by the boundary's quadrilaterals, as the
+    check makes them, or by its triangles) and their prefilter lose no facing pair, on pixels wider than the
+    search range and narrower (where the range takes in a vertex's own face beyond its neighbours)."""
     import gdfe.solver.penetration as pen
 
-    des, X = _spiral(gap)
+    des, X = _spiral(gap, cells=round(6.0 / pixel), pixel=pixel)
     check = PenetrationCheck(des)
     p = check(X)
     assert not p.found
     v, t, d = _brute_force_facing(check, X)
     assert v.size > 100
-    tri = pen._Triangles(X[check.tris[:, 0]], X[check.tris[:, 1]], X[check.tris[:, 2]])
+    tri = pen._Triangles(X[check.tris[:, 0]], X[check.tris[:, 1]], X[check.tris[:, 2]], quads=quads)
     v2, t2, d2 = check._facing_search(X, tri)(check.surface)
     assert sorted(zip(v2.tolist(), t2.tolist())) == sorted(zip(v.tolist(), t.tolist()))
     assert p.min_gap_mm == pytest.approx(d.min(), rel=1e-12)
     assert p.min_gap_mm == pytest.approx(gap, rel=0.05)  # the facing faces are two nearly parallel arcs
+
+
+@pytest.mark.parametrize("quads", [True, False])
+def test_facing_search_within_a_bound_keeps_every_pair_as_near(quads):
+    """The gap search's bound (the nearest pair found so far) drops only pairs further than it."""
+    import gdfe.solver.penetration as pen
+
+    des, X = _spiral(0.012)
+    check = PenetrationCheck(des)
+    v, t, d = _brute_force_facing(check, X)
+    tri = pen._Triangles(X[check.tris[:, 0]], X[check.tris[:, 1]], X[check.tris[:, 2]], quads=quads)
+    find = check._facing_search(X, tri)
+    full = find(check.surface)[2].size
+    for bound in (d.min(), float(np.median(d)), 0.5 * check.gap_range, 2.0 * check.gap_range):
+        v2, t2, d2 = find(check.surface, within=bound)
+        near = d <= bound
+        assert sorted(zip(v2.tolist(), t2.tolist())) == sorted(zip(v[near].tolist(), t[near].tolist()))
+        assert np.array_equal(np.sort(d2), np.sort(d[near]))
+    assert 0 < find(check.surface, within=d.min())[2].size < full
+
+
+def test_triangles_taken_for_quadrilaterals_must_be_their_halves():
+    import gdfe.solver.penetration as pen
+
+    des, X = _spiral(0.02)
+    check = PenetrationCheck(des)
+    A, B, C = (X[check.tris[:, k]] for k in range(3))
+    assert pen._Triangles(A, B, C, quads=True).quads
+    with pytest.raises(ValueError, match="halves"):
+        pen._Triangles(A[::-1], B[::-1], C[::-1], quads=True)
+    with pytest.raises(ValueError, match="halves"):
+        pen._Triangles(A[1:], B[1:], C[1:], quads=True)
 
 
 def test_check_answers_the_same_in_any_chunks_and_threads(monkeypatch):
