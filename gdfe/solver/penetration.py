@@ -514,6 +514,7 @@ class PenetrationCheck:
                               for c in range(3)])
         vn /= np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
         offset = _dot(tri.A, tri.unit)  # each triangle's plane: x . unit = offset
+        tri.search_classes()  # the k-d trees made here, once, not by the threads
 
         def facing(part, within=np.inf):
             g = min(float(within), r)
@@ -629,7 +630,7 @@ class _Triangles:
                 out.append((part, cKDTree(cen[part]), float(rad[part].max())))
         return out
 
-    def _search_classes(self):
+    def search_classes(self):
         """What the searches by distance go by: the quadrilaterals' classes where there are
         quadrilaterals, else the triangles'; and the number of quadrilaterals (None for triangles)."""
         return (self.quad_classes, len(self.cen) // 2) if self.quads else (self.classes, None)
@@ -688,7 +689,7 @@ class _Triangles:
         """Pairs ``(k, t)`` of points and triangles closer than ``r``, and others (by the centroids of the triangles, or
         of their quadrilaterals, with their class's radius)."""
         tree = cKDTree(points)
-        classes, q = self._search_classes()
+        classes, q = self.search_classes()
         out_k, out_t = [], []
         for idx, t, rad in classes:
             u, v = _pairs(tree, t, r + rad)
@@ -708,7 +709,7 @@ class _Triangles:
         it), so a small ``g`` leaves out most of the point's own face.
         """
         near, ctree = None, None
-        classes, q = self._search_classes()
+        classes, q = self.search_classes()
         out_k, out_t = [], []
         for idx, t, rad in classes:
             if g * (g + 2.0 * rad) < 2.0 * r * rad:
