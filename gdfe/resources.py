@@ -5,8 +5,8 @@ grows by about :data:`SOLVE_BYTES_PER_CELL` per cell over a base of :data:`BASE_
 the frames it keeps; its time per frame follows a power law in the cell count
 (:data:`SECONDS_AT`, :data:`TIME_EXPONENTS`). The constants are fitted to the benchmark's
 measurements on 2 cores (``gdfe bench``, 10^3 to 10^6 cells, and the 4*10^6-cell sheet of
-``docs/bench/sheet4e6`` and ``sheet4e6_heap``): they are estimates, meant to decide before a run whether it fits the
-machine and whether it is long enough to ask first. The memory is an upper envelope of the
+``docs/bench/sheet4e6`` and ``sheet4e6_heap``): they are estimates, meant to decide before a run
+whether it fits the machine and whether it is long enough to ask first. The memory is an upper envelope of the
 measured peaks (1.05-1.29 times each from 7.8*10^4 cells up); the time is within a factor of 2
 of the benchmark's sheets, and longer than a design that converges in a few steps takes (the
 785 456-cell Figure 8 dome, 4 steps: a fifth of its estimate). Thin cells (``nz`` large)

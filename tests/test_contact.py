@@ -134,26 +134,32 @@ def _brute_force_facing(check, X):
     for k in range(3):
         np.add.at(vn, tris[:, k], N)
     vn /= np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
-    vi, tj = (a.ravel() for a in np.meshgrid(check.surface, np.arange(len(tris)), indexing="ij"))
-    p = X[vi]
-    q = point_triangle_closest(p, A[tj], B[tj], C[tj])
-    dist = np.linalg.norm(p - q, axis=1)
-    s = np.einsum("ij,ij->i", p - A[tj], N[tj] / np.linalg.norm(N[tj], axis=1, keepdims=True))
-    ok = ((s > 1e-9 * r) & (s <= r) & (np.einsum("ij,ij->i", p - q, N[tj]) > 0) & (dist <= r)
-          & (np.einsum("ij,ij->i", q - p, vn[vi]) >= 0.5 * dist * dist / r) & ~check.neighbours(vi, check.owner[tj]))
-    return vi[ok], tj[ok], dist[ok]
+    out = []
+    for part in np.array_split(check.surface, max(1, check.surface.size // 200)):  # every pair, in bounded memory
+        vi, tj = (a.ravel() for a in np.meshgrid(part, np.arange(len(tris)), indexing="ij"))
+        p = X[vi]
+        q = point_triangle_closest(p, A[tj], B[tj], C[tj])
+        dist = np.linalg.norm(p - q, axis=1)
+        s = np.einsum("ij,ij->i", p - A[tj], N[tj] / np.linalg.norm(N[tj], axis=1, keepdims=True))
+        ok = ((s > 1e-9 * r) & (s <= r) & (np.einsum("ij,ij->i", p - q, N[tj]) > 0) & (dist <= r)
+              & (np.einsum("ij,ij->i", q - p, vn[vi]) >= 0.5 * dist * dist / r)
+              & ~check.neighbours(vi, check.owner[tj]))
+        out.append((vi[ok], tj[ok], dist[ok]))
+    return tuple(np.concatenate(a) for a in zip(*out))
 
 
 @pytest.mark.parametrize("quads", [True, False])
-@pytest.mark.parametrize("gap, pixel", [(0.012, 0.1), (0.04, 0.1), (0.012, 0.04)])
+@pytest.mark.parametrize("gap, pixel", [(0.012, 0.1), (0.04, 0.1), (0.012, 0.03)])
 def test_gap_of_a_rolled_strip_equals_the_brute_force_one(gap, pixel, quads):
     """Curved faces facing each other across ``gap``: the searches (by the boundary's quadrilaterals, as the
     check makes them, or by its triangles) and their prefilter lose no facing pair, on pixels wider than the
-    search range and narrower (where the range takes in a vertex's own face beyond its neighbours)."""
+    search range and on pixels so fine that the range reaches past a vertex's neighbours (two pixels) into
+    its own face."""
     import gdfe.solver.penetration as pen
 
-    des, X = _spiral(gap, cells=round(6.0 / pixel), pixel=pixel)
+    des, X = _spiral(gap, cells=round(6.0 / pixel), pixel=pixel, width=4 if pixel > 0.05 else 2)
     check = PenetrationCheck(des)
+    assert (2 * pixel < check.gap_range) == (pixel < 0.05)
     p = check(X)
     assert not p.found
     v, t, d = _brute_force_facing(check, X)
@@ -184,17 +190,17 @@ def test_facing_search_within_a_bound_keeps_every_pair_as_near(quads):
     assert 0 < find(check.surface, within=d.min())[2].size < full
 
 
-def test_triangles_taken_for_quadrilaterals_must_be_their_halves():
+def test_the_check_searches_by_quadrilaterals_only_where_the_triangles_are_their_halves():
     import gdfe.solver.penetration as pen
 
     des, X = _spiral(0.02)
     check = PenetrationCheck(des)
-    A, B, C = (X[check.tris[:, k]] for k in range(3))
-    assert pen._Triangles(A, B, C, quads=True).quads
-    with pytest.raises(ValueError, match="halves"):
-        pen._Triangles(A[::-1], B[::-1], C[::-1], quads=True)
-    with pytest.raises(ValueError, match="halves"):
-        pen._Triangles(A[1:], B[1:], C[1:], quads=True)
+    assert check._triangles(X).quads
+    tris = check.tris
+    assert pen._halves_of_quadrilaterals(tris)
+    assert not pen._halves_of_quadrilaterals(tris[::-1])  # first halves' a with second halves' a, but b for c
+    assert not pen._halves_of_quadrilaterals(tris[1:])
+    assert not pen._halves_of_quadrilaterals(np.concatenate([tris[:, [0, 1, 2]], tris[:, [1, 2, 0]]]))
 
 
 def test_check_answers_the_same_in_any_chunks_and_threads(monkeypatch):

@@ -249,6 +249,26 @@ def _inside_hexes(p, H):
     return inside
 
 
+def _radius_classes(idx, cen, rad, split):
+    """The items ``idx`` in two classes by their radius ``rad`` (at most ``split``, and above it):
+    ``(indices, k-d tree of their centroids cen, largest radius)`` for each class that has any."""
+    out = []
+    for sel in (rad[idx] <= split, rad[idx] > split):
+        part = idx[sel]
+        if part.size:
+            out.append((part, cKDTree(cen[part]), float(rad[part].max())))
+    return out
+
+
+def _halves_of_quadrilaterals(tris):
+    """Whether triangles ``k`` and ``k + t/2`` of ``tris`` ``(t, 3)`` are the halves ``(a, b, c)`` and
+    ``(a, c, d)`` of one quadrilateral ``(a, b, c, d)``, as :func:`surface_triangles` makes them."""
+    tris = np.asarray(tris)
+    q = len(tris) // 2
+    return (2 * q == len(tris) and bool(np.array_equal(tris[:q, 0], tris[q:, 0]))
+            and bool(np.array_equal(tris[:q, 2], tris[q:, 1])))
+
+
 def _pairs(tree_a, tree_b, r):
     """Index pairs ``(i, j)`` with point ``i`` of ``tree_a`` within ``r`` of point ``j`` of ``tree_b``."""
     m = tree_a.sparse_distance_matrix(tree_b, r, output_type="ndarray")
@@ -280,6 +300,7 @@ class PenetrationCheck:
         self.design = design
         self.gap_range = GAP_RANGE_H * design.h if gap_range is None else float(check_positive("gap_range", gap_range))
         self.tris, self.owner = surface_triangles(design)
+        self._quads = _halves_of_quadrilaterals(self.tris)
         self.windows = EmbeddedWindows(design.mesh.points, self.tris)
         cells = design.mesh.cells
         self.cells = cells
@@ -378,7 +399,7 @@ class PenetrationCheck:
     def _triangles(self, X):
         """The boundary triangles at the shape ``X`` (:class:`_Triangles`)."""
         tris = self.tris
-        return _Triangles(X[tris[:, 0]], X[tris[:, 1]], X[tris[:, 2]], quads=True)
+        return _Triangles(X[tris[:, 0]], X[tris[:, 1]], X[tris[:, 2]], quads=self._quads)
 
     def _crossing_pairs(self, X, tri):
         """The crossing triangle pairs ``i``, ``j`` of the shape ``X`` and the ``(k, 2)`` edges that cross.
@@ -580,14 +601,9 @@ class _Triangles:
 
     def __init__(self, A, B, C, quads=False):
         self.A, self.B, self.C = A, B, C
-        # triangles k and k + t/2 are the halves (a, b, c) and (a, c, d) of one quadrilateral (a, b, c, d),
-        # as surface_triangles makes them: the searches by distance then go by the quadrilaterals
+        # triangles k and k + t/2 are the halves (a, b, c) and (a, c, d) of one quadrilateral (a, b, c, d)
+        # (_halves_of_quadrilaterals, asked by the caller): the searches by distance then go by the quadrilaterals
         self.quads = bool(quads)
-        if self.quads:
-            q = len(A) // 2
-            if 2 * q != len(A) or not (np.array_equal(A[:q], A[q:]) and np.array_equal(C[:q], B[q:])):
-                raise ValueError("quads: expected triangles k and k + t/2 to be the halves (a, b, c) and (a, c, d) "
-                                 "of one quadrilateral, as surface_triangles makes them")
         self.lo = np.minimum(np.minimum(A, B), C)
         self.hi = np.maximum(np.maximum(A, B), C)
         cen = (A + B + C) / 3.0
@@ -622,13 +638,7 @@ class _Triangles:
         corners = (self.A[:q], self.B[:q], self.C[:q], self.C[q:])
         cen = sum(corners) / 4.0
         rad = np.sqrt(np.max([_dot(v - cen, v - cen) for v in corners], axis=0))
-        split = 1.5 * float(np.median(rad))
-        out = []
-        for sel in (rad <= split, rad > split):
-            part = np.nonzero(sel)[0]
-            if part.size:
-                out.append((part, cKDTree(cen[part]), float(rad[part].max())))
-        return out
+        return _radius_classes(np.arange(q), cen, rad, 1.5 * float(np.median(rad)))
 
     def search_classes(self):
         """What the searches by distance go by: the quadrilaterals' classes where there are
@@ -643,12 +653,7 @@ class _Triangles:
 
     def _classes(self, idx):
         """The triangles ``idx`` in their two classes: ``(indices, k-d tree of centroids, largest radius)`` each."""
-        out = []
-        for sel in (self.rad[idx] <= self.split, self.rad[idx] > self.split):
-            part = idx[sel]
-            if part.size:
-                out.append((part, cKDTree(self.cen[part]), float(self.rad[part].max())))
-        return out
+        return _radius_classes(idx, self.cen, self.rad, self.split)
 
     def close_pairs(self, subset=None):
         """Pairs ``(i, j)``, ``i != j``, of triangles whose centroids are within their classes' radii summed.
@@ -689,14 +694,7 @@ class _Triangles:
         """Pairs ``(k, t)`` of points and triangles closer than ``r``, and others (by the centroids of the triangles, or
         of their quadrilaterals, with their class's radius)."""
         tree = cKDTree(points)
-        classes, q = self.search_classes()
-        out_k, out_t = [], []
-        for idx, t, rad in classes:
-            u, v = _pairs(tree, t, r + rad)
-            u, v = self._as_triangles(u, idx[v], q)
-            out_k.append(u)
-            out_t.append(v)
-        return np.concatenate(out_k), np.concatenate(out_t)
+        return self._pairs_by_class(lambda rad: (tree, r + rad))
 
     def facing_candidates(self, points, centres, r, g):
         """Pairs ``(k, t)``: every triangle that meets the ball of radius ``r`` about ``centres[k]``
@@ -708,16 +706,27 @@ class _Triangles:
         (``(g + rad)^2`` against ``2 r rad + rad^2``, the squared radii of the discs they cut from
         it), so a small ``g`` leaves out most of the point's own face.
         """
-        near, ctree = None, None
+        trees = {}
+
+        def about(rad):
+            if g * (g + 2.0 * rad) < 2.0 * r * rad:
+                if "point" not in trees:
+                    trees["point"] = cKDTree(points)
+                return trees["point"], (g + rad) * (1.0 + 1e-9)  # a pair at exactly g kept
+            if "centre" not in trees:
+                trees["centre"] = cKDTree(centres)
+            return trees["centre"], r + rad
+        return self._pairs_by_class(about)
+
+    def _pairs_by_class(self, about):
+        """Pairs ``(k, t)`` of query points and triangles from the searches of :meth:`search_classes`'
+        classes; ``about(rad)`` gives a class of radius ``rad`` the k-d tree of the query points and the
+        search's radius."""
         classes, q = self.search_classes()
         out_k, out_t = [], []
         for idx, t, rad in classes:
-            if g * (g + 2.0 * rad) < 2.0 * r * rad:
-                near = cKDTree(points) if near is None else near
-                u, v = _pairs(near, t, (g + rad) * (1.0 + 1e-9))  # a pair at exactly g kept
-            else:
-                ctree = cKDTree(centres) if ctree is None else ctree
-                u, v = _pairs(ctree, t, r + rad)
+            tree, radius = about(rad)
+            u, v = _pairs(tree, t, radius)
             u, v = self._as_triangles(u, idx[v], q)
             out_k.append(u)
             out_t.append(v)
