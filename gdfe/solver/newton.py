@@ -1199,6 +1199,154 @@ class _DriftWatch:
         return self.drift
 
 
+class _DistanceEstimate:
+    """The estimated distance to the solution (units of h), from the steps taken (:func:`solve_newton`, Notes).
+
+    ``error`` is the last step's length without its rigid part, or, with ``extrapolate``, the
+    bound ``|s_k| theta / (1 - theta)`` of a sequence contracting by ``theta`` where that is
+    smaller, ``theta`` the larger of the last two contractions of full steps.
+    """
+
+    def __init__(self, extrapolate):
+        self.extrapolate = extrapolate
+        self.error = np.inf
+        self._prev = np.inf  # the last full step's length
+        self._theta = 0.0  # the contraction of the last two full steps (0: none yet)
+
+    def step(self, moved, full):
+        """After a step of length ``moved`` (h), ``full`` where it was taken whole."""
+        self.error = moved
+        if not full:
+            self._prev, self._theta = np.inf, 0.0
+            return
+        theta = moved / self._prev  # 0 after a first full step: no estimate yet
+        rate = max(theta, self._theta)
+        # with a vanishing damping the estimate is the step itself: extrapolated by the
+        # contraction, it fell 18x short of the distance in the stopping study
+        if 0.0 < theta and rate < 1.0 and self.extrapolate:
+            self.error = min(moved, moved * rate / (1.0 - rate))
+        self._prev, self._theta = moved, theta
+
+    def plain(self, res):
+        """After a plain step whose residual was ``res`` (h)."""
+        self.error, self._prev, self._theta = res, np.inf, 0.0
+
+
+class _Iterate(typing.NamedTuple):
+    """A Newton iterate: shape ``V`` ``(n, 3)`` [mm], its best rotations ``Q`` and stretches ``S``, its
+    energy ``E`` (with the barrier's under contact) and the contact state (None without)."""
+    V: np.ndarray
+    Q: np.ndarray
+    S: np.ndarray
+    E: float
+    state: typing.Any = None
+
+
+def _iterate(steps, V, activation, contact):
+    """The iterate at shape ``V``: its orientation, and with ``contact`` the barrier's state and energy."""
+    o = steps.orient(V, activation)
+    if contact is None:
+        return _Iterate(V, o.Q, o.S, o.energy)
+    state = contact.evaluate(V)
+    return _Iterate(V, o.Q, o.S, o.energy + state.energy, state)
+
+
+class _Plain(typing.NamedTuple):
+    """The plain (assembly) step from an iterate (:func:`_plain_step`)."""
+    G: np.ndarray | None  # the plain step's shape, None where only estimated
+    res: float  # its residual (units of h)
+    b: np.ndarray  # the assembly's right-hand side: the gradient is 2 (L V - b)
+    grad: np.ndarray | None  # the gradient at the iterate, where it was made
+    move: np.ndarray | None  # with contact, the move with the contact forces held
+    gB: np.ndarray | None  # with contact, the barrier's gradient
+
+
+def _plain_step(steps, x, Vp, activation, contact, lazy, may_end):
+    """The plain step from iterate ``x`` and its residual, the stopping test's (:func:`solve_newton`).
+
+    ``lazy`` (a multigrid without contact): the exact solve is made only where ``may_end(res,
+    slack=2)`` says the test could pass on the V-cycle's estimate; the Newton step needs only the
+    gradient. With ``contact`` the move holds the barrier's force at ``x``.
+    """
+    scale = steps.design.h
+    plain = steps.assemble(x.Q, Vp, activation, solve=not lazy)
+    G = plain.V
+    if lazy:
+        g = 2.0 * (steps.apply_L(x.V) - plain.b)
+        move = np.zeros_like(x.V)
+        move[steps.free] = steps.approx_solve_free(-0.5 * g[steps.free])
+        res = float(np.abs(move).max() / scale)
+        if may_end(res, slack=2.0):
+            move += x.V  # the approximate plain step: the exact solve starts there
+            G = steps.assemble(x.Q, Vp, activation, guess=move).V
+            res = float(np.abs(G - x.V).max() / scale)
+        return _Plain(G, res, plain.b, g, None, None)
+    if contact is None:
+        return _Plain(G, float(np.abs(G - x.V).max() / scale), plain.b, None, None, None)
+    gB = contact.gradient(x.state)
+    move = G - x.V
+    if x.state.active:
+        move = move - 0.5 * _solve_free(steps, gB)
+    return _Plain(G, float(np.abs(move).max() / scale), plain.b, None, move, gB)
+
+
+def _newton_direction(steps, directions, x, plain, res, contact, error, target):
+    """The gradient at iterate ``x`` (the barrier's added with ``contact``, zero at the pinned vertex) and
+    the Newton direction there, a function of the damping (``directions``, :func:`solve_newton`)."""
+    grad = 2.0 * (steps.apply_L(x.V) - plain.b) if plain.grad is None else plain.grad
+    kwargs = {"V": x.V} if getattr(directions, "wants_shape", False) else {}
+    if getattr(directions, "recycles", False):
+        kwargs["recycle_here"] = contact is None
+    if contact is not None:
+        grad += plain.gB
+        kwargs["extra"] = contact.hessian(x.state, project=res > CONTACT_EXACT_RES)
+    grad[steps.pin] = 0.0
+    return grad, directions(x.Q, x.S, grad, res, error=error, target=target, **kwargs)
+
+
+def _predicted_fall(grad, step, alpha):
+    """The quadratic model's fall of the energy along ``alpha`` times the Newton ``step`` from where the
+    gradient is ``grad``: ``-g.s alpha (1 - alpha / 2)`` (CG's iterates satisfy ``s.H s = -g.s``)."""
+    return -float(np.einsum("ij,ij->", grad, step)) * alpha * (1.0 - 0.5 * alpha)
+
+
+def _line_search(steps, x, step, activation, alphas, contact):
+    """The first of the trial lengths whose iterate lowers the energy: ``(alpha, iterate, trials)``,
+    ``(None, None, trials)`` where none does.
+
+    Without contact the lengths are ``alphas``; with it :data:`CONTACT_ALPHAS` of the
+    collision-free fraction of ``step``. A full step may raise the energy by its round-off
+    (:data:`ENERGY_ROUNDOFF`): near the solution every step changes it by less than that.
+    """
+    if contact is None:
+        trials = alphas
+    else:
+        amax = contact.max_step(x.V, x.V + step, x.state)
+        trials = tuple(amax * a for a in CONTACT_ALPHAS) if amax > 0 else ()
+    for alpha in trials:
+        trial = _iterate(steps, x.V + alpha * step, activation, contact)
+        if trial.E < x.E or (alpha == 1.0 and trial.E <= x.E * (1.0 + ENERGY_ROUNDOFF)):
+            return alpha, trial, trials
+    return None, None, trials
+
+
+def _plain_fallback(steps, x, plain, Vp, activation, contact):
+    """The iterate after the plain step, where no Newton step lowered the energy; None where none does.
+
+    Without contact the plain step itself; with contact the move with the contact forces held,
+    cut by collision detection and shortened by :data:`CONTACT_ALPHAS` until the energy falls.
+    """
+    if contact is None:
+        V = plain.G if plain.G is not None else steps.assemble(x.Q, Vp, activation).V
+        return _iterate(steps, V, activation, None)
+    amax = contact.max_step(x.V, x.V + plain.move, x.state)
+    for alpha in tuple(amax * a for a in CONTACT_ALPHAS) if amax > 0 else ():
+        trial = _iterate(steps, x.V + alpha * plain.move, activation, contact)
+        if trial.E < x.E:
+            return trial
+    return None
+
+
 def _solve_free(steps, F):
     """``L_ff^{-1} F`` on the free vertices (zero at the pinned one), ``(n, 3)``."""
     out = np.zeros_like(F)
@@ -1296,117 +1444,53 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
     With contact, the plain step's move is ``L^{-1} (b - L V - g_B / 2)``: the assembly
     step with the barrier's force ``g_B`` held at its value at ``V``.
     """
-    V = np.array(V0, float)
-    Vp = V[steps.pin].copy()
-    extrapolate = not vanishing_damping if extrapolate is None else bool(extrapolate)
-
-    def shape(V):  # the iterate, for a directions function that asks for it (``wants_shape``), and whether it may recycle
-        out = {"V": V} if getattr(directions, "wants_shape", False) else {}
-        if getattr(directions, "recycles", False):
-            out["recycle_here"] = contact is None
-        return out
-
+    Vp = np.array(V0, float)[steps.pin].copy()
     scale = steps.design.h
-    o = steps.orient(V, activation)
-    Q, E, S = o.Q, o.energy, o.S
-    state = None
-    if contact is not None:
-        state = contact.evaluate(V)
-        if not np.isfinite(state.energy):
-            raise GdfeError("V0: the start crosses or touches itself; the contact solve needs a start free "
-                            "of self-intersection")
-        E = E + state.energy
-    energies = [E]
+    target = STEP_TOL_FACTOR * tol
+    extrapolate = not vanishing_damping if extrapolate is None else bool(extrapolate)
+    x = _iterate(steps, np.array(V0, float), activation, contact)
+    if contact is not None and not np.isfinite(x.state.energy):
+        raise GdfeError("V0: the start crosses or touches itself; the contact solve needs a start free "
+                        "of self-intersection")
+    energies = [x.E]
     mu = 1e-3
     it = cg = 0
     stalled = False
-    error = prev = np.inf  # estimated distance to the solution; last full step, in units of h
-    last_theta = 0.0  # the contraction of the last two full steps (0: none yet)
-    watch = _DriftWatch(E, V, on_drift, STEP_TOL_FACTOR * tol, scale)
+    estimate = _DistanceEstimate(extrapolate)
+    watch = _DriftWatch(x.E, x.V, on_drift, target, scale)
+
+    def ends(res, slack=1.0):  # the stopping test (Notes) at ``slack`` times the tolerance, or the last iteration
+        return (res <= slack * tol and estimate.error <= target) or it >= max_iter or watch.stop
+
+    def timed(f, *args, **kwargs):
+        t0 = time.perf_counter()
+        out = f(*args, **kwargs)
+        steps.timings["newton"] = steps.timings.get("newton", 0.0) + time.perf_counter() - t0
+        return out
+
     # with a multigrid, the plain step's exact solve is made only where the test could pass
-    # (a V-cycle estimates its residual otherwise): the Newton step needs only the gradient
     lazy = contact is None and steps.uses_multigrid
     while True:
-        direction = None  # the last step's linearisation, Jacobian and coarse factor: not held beside the next's
-        plain = steps.assemble(Q, Vp, activation, solve=not lazy)  # the plain step from V
-        G = plain.V
+        grad = direction = None  # the last step's linearisation, Jacobian and coarse factor: not held beside the next's
         it += 1
-        g = None  # the gradient at V, where the lazy test made it
-        if lazy:
-            g = 2.0 * (steps.apply_L(V) - plain.b)
-            move = np.zeros_like(V)
-            move[steps.free] = steps.approx_solve_free(-0.5 * g[steps.free])
-            res = float(np.abs(move).max() / scale)
-            if (res <= 2.0 * tol and error <= STEP_TOL_FACTOR * tol) or it >= max_iter or watch.stop:
-                move += V  # the approximate plain step: the exact solve starts there
-                G = steps.assemble(Q, Vp, activation, guess=move).V
-                res = float(np.abs(G - V).max() / scale)
-        elif contact is None:
-            res = float(np.abs(G - V).max() / scale)
-        else:
-            gB = contact.gradient(state)
-            move = G - V
-            if state.active:
-                move = move - 0.5 * _solve_free(steps, gB)
-            res = float(np.abs(move).max() / scale)
-        if (res <= tol and error <= STEP_TOL_FACTOR * tol) or it >= max_iter or watch.stop:
+        plain = _plain_step(steps, x, Vp, activation, contact, lazy, ends)
+        res = plain.res
+        if ends(res):
             break
-        t0 = time.perf_counter()
-        grad = 2.0 * (steps.apply_L(V) - plain.b) if g is None else g
-        if contact is None:
-            grad[steps.pin] = 0.0
-            direction = directions(Q, S, grad, res, error=error, target=STEP_TOL_FACTOR * tol, **shape(V))
-        else:
-            grad += gB
-            grad[steps.pin] = 0.0
-            direction = directions(Q, S, grad, res, extra=contact.hessian(state, project=res > CONTACT_EXACT_RES),
-                                   error=error, target=STEP_TOL_FACTOR * tol, **shape(V))
-        steps.timings["newton"] = steps.timings.get("newton", 0.0) + time.perf_counter() - t0
+        grad, direction = timed(_newton_direction, steps, directions, x, plain, res, contact, estimate.error, target)
         for _ in range(20):
-            t0 = time.perf_counter()
-            step, k = direction(mu)
+            step, k = timed(direction, mu)
             cg += k
-            steps.timings["newton"] += time.perf_counter() - t0
-            taken = None
+            taken, trial, trials = None, None, ()
             if step is not None and np.any(step):
-                if contact is None:
-                    trials = alphas
-                else:
-                    amax = contact.max_step(V, V + step, state)
-                    trials = tuple(amax * a for a in CONTACT_ALPHAS) if amax > 0 else ()
-                for alpha in trials:
-                    Vt = V + alpha * step
-                    trial = steps.orient(Vt, activation)
-                    Et = trial.energy
-                    if contact is not None:
-                        trial_state = contact.evaluate(Vt)
-                        Et = Et + trial_state.energy
-                    # a full step may raise the energy by its round-off: near the
-                    # solution every step changes it by less than that
-                    if Et < E or (alpha == 1.0 and Et <= E * (1.0 + ENERGY_ROUNDOFF)):
-                        V, Q, E, S, taken = Vt, trial.Q, Et, trial.S, alpha
-                        if contact is not None:
-                            state = trial_state
-                        break
+                taken, trial, trials = _line_search(steps, x, step, activation, alphas, contact)
             if taken is not None:
-                moved = float(np.abs(deformation(taken * step, V)).max() / scale)
-                error = moved
-                if taken == 1.0:
-                    theta = moved / prev  # 0 after a first full step: no estimate yet
-                    rate = max(theta, last_theta)
-                    # with a vanishing damping the estimate is the step itself: extrapolated by the
-                    # contraction, it fell 18x short of the distance in the stopping study
-                    if 0.0 < theta and rate < 1.0 and extrapolate:
-                        error = min(moved, moved * rate / (1.0 - rate))
-                    prev, last_theta = moved, theta
-                else:
-                    prev, last_theta = np.inf, 0.0
+                x = trial
+                moved = float(np.abs(deformation(taken * step, x.V)).max() / scale)
+                estimate.step(moved, full=taken == 1.0)
                 # a step cut short by collision detection, not by the energy, keeps the damping
                 full = taken == 1.0 or (contact is not None and taken == trials[0])
-                # the quadratic model's reduction along the step taken, -g.s a (1 - a / 2) (CG's iterates
-                # satisfy s.H s = -g.s), against the energy's: where they agree the damping falls faster
-                predicted = -float(np.einsum("ij,ij->", grad, step)) * taken * (1.0 - 0.5 * taken)
-                fell = energies[-1] - E
+                predicted, fell = _predicted_fall(grad, step, taken), energies[-1] - x.E
                 log.debug("newton %d: step %.3e h (alpha %g), model agreement %.3f", it, moved, taken,
                           fell / predicted if predicted > 0.0 else np.nan)
                 fast = (vanishing_damping and taken == 1.0 and contact is None and predicted > 0.0
@@ -1415,42 +1499,31 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
                 break
             mu *= 8.0
         else:  # no descent even with heavy damping: take the plain step
-            if contact is None:
-                V = G if G is not None else steps.assemble(Q, Vp, activation).V
-                o = steps.orient(V, activation)
-                Q, E, S = o.Q, o.energy, o.S
-                error, prev, last_theta = res, np.inf, 0.0
-            else:  # the plain step with the contact forces held, cut by collision detection
-                target = V + move
-                amax = contact.max_step(V, target, state)
-                for alpha in tuple(amax * a for a in CONTACT_ALPHAS) if amax > 0 else ():
-                    Vt = V + alpha * move
-                    trial, trial_state = steps.orient(Vt, activation), contact.evaluate(Vt)
-                    if trial.energy + trial_state.energy < E:
-                        V, Q, S, state = Vt, trial.Q, trial.S, trial_state
-                        E = trial.energy + trial_state.energy
-                        error, prev, last_theta = res, np.inf, 0.0
-                        break
-                else:
-                    stalled = True
-                    log.warning("newton with contact: no step lowers the energy at residual %.3e", res)
-                    energies.append(E)
-                    break
+            after = _plain_fallback(steps, x, plain, Vp, activation, contact)
+            if after is None:
+                stalled = True
+                log.warning("newton with contact: no step lowers the energy at residual %.3e", res)
+                energies.append(x.E)
+                break
+            x = after
+            estimate.plain(res)
         log.debug("newton %d: residual %.3e, error estimate %.3e, energy %.6e, mu %.1e",
-                  it, res, error, E, mu,
-                  extra={"progress": {"event": "newton", "iteration": it, "residual_h": res, "estimate_h": error}})
+                  it, res, estimate.error, x.E, mu,
+                  extra={"progress": {"event": "newton", "iteration": it, "residual_h": res,
+                                      "estimate_h": estimate.error}})
         if steps.n > RELEASE_POINTS:
             _memory.release()
-        energies.append(E)
+        energies.append(x.E)
         if monitor is not None and contact is None:
-            monitor(it, V)
-        watch.update(it, E, error, V)
+            monitor(it, x.V)
+        watch.update(it, x.E, estimate.error, x.V)
     drift = watch.report(it)
-    done = res <= tol and error <= STEP_TOL_FACTOR * tol and not (stalled or watch.stop)
+    error = estimate.error
+    done = res <= tol and error <= target and not (stalled or watch.stop)
     if contact is None:
-        return SolveStats(points=G, converged=done, iterations=it, residual=res,
-                          energies=energies + [steps.orient(G, activation).energy], cg_iterations=cg,
+        return SolveStats(points=plain.G, converged=done, iterations=it, residual=res,
+                          energies=energies + [steps.orient(plain.G, activation).energy], cg_iterations=cg,
                           error_estimate=error, drift=drift)
-    return SolveStats(points=V, converged=done, iterations=it, residual=res,
-                      energies=energies + [E], cg_iterations=cg, contact_pairs=state.active,
-                      contact_energy=state.energy, error_estimate=error, drift=drift)
+    return SolveStats(points=x.V, converged=done, iterations=it, residual=res,
+                      energies=energies + [x.E], cg_iterations=cg, contact_pairs=x.state.active,
+                      contact_energy=x.state.energy, error_estimate=error, drift=drift)
