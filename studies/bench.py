@@ -70,6 +70,7 @@ import numpy as np
 from gdfe._validation import GdfeError, check_choice
 from gdfe.calibration import Calibration
 from gdfe.paper import FIG6_D, FIG6_LENGTHS, H
+from gdfe.solver.newton import NewtonStep, convergence_rates
 from studies._common import error_against_finest, median_time
 
 __all__ = ["run", "format_table", "plot", "mask_sheet", "write_mask_pngs", "SETTINGS", "FEM_LEVELS"]
@@ -403,7 +404,9 @@ def _sheet_case(args):
            "energy": res.energy, "assembly_solver": "multigrid" if "multigrid" in tm else factor_backend(),
            "coarse_solver": coarse_solver,
            "split_s": {k: v / it for k, v in tm.items() if k not in once},
-           "factorise_s": tm.get("factorise", 0.0) + tm.get("multigrid", 0.0)}
+           "factorise_s": tm.get("factorise", 0.0) + tm.get("multigrid", 0.0),
+           "start_levels": [lv.as_dict() for lv in res.start_levels],
+           "newton_steps": [s.as_dict() for s in res.newton_steps]}
     # lower bound: one 3-column solve with the prefactorised n x n matrix plus one batched polar
     # decomposition of all cells (numpy's SVD, and the solver's own polar iteration)
     # measured with the C heap as the solve had it (gdfe.resources.solve_heap): the same allocator for both
@@ -933,6 +936,24 @@ def _verdict_word(v):
     return {True: "MET", False: "NOT MET", None: "n/a"}[v["met"]]
 
 
+def _steps_lines(sheets):
+    """The median run's Newton steps, sheet by sheet: its start's levels and its fine steps (bench.json has
+    every field of them)."""
+    out = []
+    for r in sheets:
+        if "newton_steps" not in r:
+            continue
+        levels = ", ".join(f"{lv['cells']} cells {lv['iterations']} it. {lv['seconds']:.2f} s"
+                           + ("" if lv["converged"] else " (stopped)") for lv in r["start_levels"])
+        steps = [NewtonStep(**d) for d in r["newton_steps"]]
+        fine = " ".join(f"{s.length_h:.1e}/{s.cg_iterations}" + ("" if s.alpha == 1.0 else f"*{_fmt(s.alpha)}")
+                        for s in steps)
+        rates = ", ".join(f"{x:.2g}" for x in convergence_rates(steps)[-3:])
+        out.append(f"  {r.get('design', 'corrugation'):>12} {r['cells']:7d}: start {levels or 'none'}; fine steps "
+                   f"(length h / CG iterations, *fraction taken) {fine or 'none'}; last contractions {rates or '-'}")
+    return out
+
+
 def format_table(res):
     """The benchmark as text tables."""
     m = res["machine"]
@@ -972,6 +993,7 @@ def format_table(res):
         lines.append(f"  {r.get('design', 'corrugation'):>12} {r['cells']:7d}: the bound's solve is the "
                      f"{lb['solve_kind']}; with the multigrid's CG to 1e-11 instead ({lb['multigrid_solve_3rhs_s']:.3g} s) "
                      f"t/bd would be {lb['bound_iterations_multigrid']:.0f}")
+    lines += _steps_lines(res["sheets"])
     lines += ["  (seconds = the median of the runs, bench.json's seconds_all, and the other columns the median "
               "run's; start = the multilevel start's coarse levels, pen. = the penetration check, both inside the "
               "total; s/iter = fine-level seconds per Newton iteration; bound = 3-column solve with the factorised "

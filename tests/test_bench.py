@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import gdfe
-from studies.bench import format_table, mask_sheet, write_mask_pngs
+from studies.bench import H, format_table, mask_sheet, write_mask_pngs
 from gdfe.cli import main
 from gdfe.solver import AUTO_NEWTON_CELLS, Solver, auto_method, factor_backend, factorise
 from gdfe.solver.linearised import linearised_start_cg
@@ -33,6 +33,10 @@ def test_quick_bench_reports_every_section_and_verdict(capsys, tmp_path):
         assert lb["local_global_ratio"] > 0
         assert "superlu" in row["factorisation"]["n"]
         assert row["coarse_solver"] == "factor"
+        # the median run's Newton steps, one per iteration but the last, which finds the test met
+        assert len(row["newton_steps"]) == row["iterations"] - 1
+        assert row["newton_steps"][-1]["estimate_h"] * H == pytest.approx(row["error_estimate_mm"])
+        assert row["start_levels"] == []  # below MULTILEVEL_CELLS: the linearised start
     assert "skipped" in res["fem_comparison"]
     v = res["verdicts"]
     assert set(v) == {"hinges", "fem", "sheet", "sheet_1e6", "lower_bound", "growth", "gpu"}
@@ -46,6 +50,7 @@ def test_quick_bench_reports_every_section_and_verdict(capsys, tmp_path):
     assert len(list((tmp_path / "masks").glob("*.png"))) == 6
     text = format_table(res)
     assert f"{res['machine']['cores']} cores" in text and "Goals" in text and "lower bound" in text
+    assert text.count("fine steps (length h / CG iterations") == len(res["sheets"])
 
 
 def test_bench_runs_the_sheets_with_the_coarse_solver_asked_for(capsys):

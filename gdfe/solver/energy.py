@@ -285,6 +285,8 @@ class SolveStats:
         Where a Newton solve drifted between near-equal states (:func:`gdfe.solver.newton.solve_newton`):
         ``since_iteration``, ``detected_at``, ``iterations`` spent from then on,
         ``energy_change`` (relative), ``moved_mm``, ``estimate_mm``; None when it did not.
+    newton_steps : list of gdfe.solver.newton.NewtonStep
+        The Newton methods' record of every step taken (empty for the alternation).
     """
 
     points: np.ndarray
@@ -297,6 +299,7 @@ class SolveStats:
     contact_energy: float = 0.0
     error_estimate: float | None = None
     drift: dict | None = None
+    newton_steps: list = dataclasses.field(default_factory=list)
 
 
 class LocalGlobal:

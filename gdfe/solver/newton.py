@@ -33,10 +33,10 @@ from gdfe.solver.recycling import AugmentedCoarse, mostly_turn
 from gdfe.solver.rigid import turn_fit
 from gdfe.solver.threads import in_order, ranges, side_by_side
 
-__all__ = ["MU_MIN", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "CONTACT_ALPHAS", "CONTACT_EXACT_RES", "DRIFT_WINDOW",
+__all__ = ["MU_MIN", "HESSIAN_FLOOR", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "CONTACT_ALPHAS", "CONTACT_EXACT_RES", "DRIFT_WINDOW",
            "DRIFT_ENERGY", "DRIFT_SHRINK", "ON_DRIFT", "RELEASE_POINTS", "CG_RTOL_MIN", "CG_RTOL_MAX", "CG_TARGET_MARGIN",
            "EW_GAMMA", "EW_ALPHA", "FORCINGS", "MU_RESIDUAL", "MU_RESIDUAL_CONTACT", "MODEL_AGREEMENT", "PRECONDITIONERS",
-           "AMG_REBUILD_DAMPING", "TWO_LEVELS", "COARSE_SOLVERS", "CGOperator", "forcing_term", "sqrt_forcing", "COARSE_REUSE", "COARSE_REUSE_DAMPING",
+           "AMG_REBUILD_DAMPING", "TWO_LEVELS", "COARSE_SOLVERS", "CGOperator", "NewtonStep", "convergence_rates", "forcing_term", "sqrt_forcing", "COARSE_REUSE", "COARSE_REUSE_DAMPING",
            "ReducedHessian", "Linearisation", "CoarseSpace", "CoarseCells", "pcg", "deformation", "solve_newton",
            "factorised_directions", "cg_directions"]
 
@@ -106,6 +106,12 @@ CG_TARGET_MARGIN = 0.25
 COARSE_REUSE = 0.1
 #: ... and the damping changed the coarse matrix's L part by at most this fraction.
 COARSE_REUSE_DAMPING = 1e-2
+#: Lower clamp of every cell's Hessian eigenvalues (relative to the flat print's) in the Newton directions
+#: of both methods (:meth:`ReducedHessian.linearise`): below 1 a cell may bring negative curvature, which
+#: the sum over cells absorbs and the energy test guards. At 1 (every cell's Hessian positive semi-definite)
+#: the factorised Newton converged only linearly (0.22 a step on the 2.6 mm Figure 6 hinge, 0.52 on a
+#: 9 mm one) and stopped 67 nm from the solution of the 2.6 mm hinge where its test asked 4.6 nm.
+HESSIAN_FLOOR = 0.5
 #: Drift (see :func:`solve_newton`): over this many iterations ...
 DRIFT_WINDOW = 10
 #: ... the energy fell by less than this fraction of itself (its 5th digit over ten iterations, the 6th in each) ...
@@ -602,13 +608,14 @@ class ReducedHessian:
         """``J`` (3m x 3n, CSR, rows ``3 i + a``) at ``lin``."""
         return _block_rows(lin, rest.P, self._j_pattern)
 
-    def matrix(self, Q, S, rest, mu=0.0):
-        """Positive semi-definite Hessian (3n x 3n, sparse), plus ``mu`` times ``2 L``.
+    def matrix(self, Q, S, rest, mu=0.0, floor=1.0):
+        """The Hessian (3n x 3n, sparse), plus ``mu`` times ``2 L``.
 
-        The per-cell eigenvalues are clamped to >= 1, which keeps every Newton step a
-        descent direction. Unknowns ordered vertex-major (``3 v + c``).
+        The per-cell eigenvalues are clamped to >= ``floor`` (:meth:`linearise`): at 1 the matrix is
+        positive semi-definite, which keeps every Newton step a descent direction. Unknowns ordered
+        vertex-major (``3 v + c``).
         """
-        J = self.jacobian(self.linearise(Q, S, rest, floor=1.0), rest)
+        J = self.jacobian(self.linearise(Q, S, rest, floor=floor), rest)
         return (2.0 * (1.0 + mu)) * self.L3 - 2.0 * (J.T @ J)
 
     def coarse_matrix(self, lin, rest, mu, extra=None):
@@ -890,8 +897,12 @@ def _combine(scale, Lv, JJv):
     return Lv
 
 
-def factorised_directions(hessian, rest):
+def factorised_directions(hessian, rest, floor=HESSIAN_FLOOR):
     """Newton steps of ``method="newton"``: the 3n x 3n Hessian factorised, per damping ``mu``.
+
+    The Hessian is :meth:`ReducedHessian.matrix`'s with the per-cell clamp at ``floor``
+    (:data:`HESSIAN_FLOOR`): an indefinite matrix is factorised by LU (:class:`gdfe.solver.linalg.Factoriser`),
+    and a step that does not lower the energy is damped more.
 
     Returns ``directions(Q, S, grad, res, extra=None, error=inf, target=0, V=None)``, see :func:`solve_newton`.
     """
@@ -901,7 +912,7 @@ def factorised_directions(hessian, rest):
 
     def directions(Q, S, grad, res, extra=None, error=np.inf, target=0.0, V=None):
         def step(mu):
-            H = hessian.matrix(Q, S, rest, mu=mu)
+            H = hessian.matrix(Q, S, rest, mu=mu, floor=floor)
             if extra is not None:
                 H = H + extra
             H = H[fdof][:, fdof]
@@ -966,7 +977,7 @@ def sqrt_forcing(res, target=0.0, error=np.inf):
     return float(eta)
 
 
-def cg_directions(hessian, rest, floor=0.5, cg_rtol=None, cg_max=200, forcing="eisenstat-walker",
+def cg_directions(hessian, rest, floor=HESSIAN_FLOOR, cg_rtol=None, cg_max=200, forcing="eisenstat-walker",
                   preconditioner="two-level", device="cpu"):
     """Newton steps of ``method="newton-cg"``: preconditioned CG, no 3n x 3n factorisation.
 
@@ -1197,6 +1208,76 @@ class _DriftWatch:
         if self.drift is not None:
             self.drift["iterations"] = it - self.drift["since_iteration"]
         return self.drift
+
+
+@dataclasses.dataclass(frozen=True)
+class NewtonStep:
+    """One step of a Newton solve (:attr:`gdfe.solver.SolveStats.newton_steps`, :func:`solve_newton`).
+
+    Attributes
+    ----------
+    iteration : int
+        The solve's iteration (1 for the first step); the last iteration takes no step, it
+        finds the stopping test met (or the limit reached).
+    residual_h : float
+        The plain step's residual at the iterate the step starts from (units of h).
+    kind : str
+        ``"newton"``, or ``"plain"`` where no damped Newton direction lowered the energy and the
+        plain step was taken instead.
+    length_h : float
+        The step's largest vertex move, its rigid part left out (:func:`deformation`; units of h).
+    alpha : float or None
+        The fraction of the Newton step taken (1: a full step; None for a plain step).
+    damping : float or None
+        The damping ``mu`` of the direction taken (None for a plain step).
+    tries : int
+        Directions computed at this iterate, one per damping tried.
+    cg_iterations : int
+        CG iterations of those directions (0 where they are factorised).
+    model_agreement : float or None
+        The energy's fall against the quadratic model's predicted fall along the step taken
+        (1: the model exact; None where the model predicted no fall, or for a plain step).
+    energy : float
+        The energy after the step [mm^5] (with the barrier's under contact).
+    estimate_h : float
+        The estimated distance to the solution after the step (units of h; :func:`solve_newton`, Notes).
+    seconds : float
+        The wall time of the iteration: the plain step, the directions, the trial energies.
+    """
+
+    iteration: int
+    residual_h: float
+    kind: str
+    length_h: float
+    alpha: float | None
+    damping: float | None
+    tries: int
+    cg_iterations: int
+    model_agreement: float | None
+    energy: float
+    estimate_h: float
+    seconds: float
+
+    def as_dict(self):
+        """The record as a dict of plain Python numbers (for JSON)."""
+        return dataclasses.asdict(self)
+
+
+def convergence_rates(steps):
+    """The contractions ``length_k / length_k-1`` of consecutive full Newton steps, ``(k,)``.
+
+    ``steps`` is a solve's :class:`NewtonStep` records. A contraction is given only where both steps
+    were whole Newton steps (``alpha`` 1); a shortened or plain step begins the sequence again. Near
+    the solution the contractions fall towards 0 where the convergence is superlinear, and stay
+    at a constant where it is linear.
+    """
+    rates, prev = [], None
+    for s in steps:
+        full = s.kind == "newton" and s.alpha == 1.0
+        if full and prev is not None and prev > 0.0:
+            rates.append(s.length_h / prev)
+        prev = s.length_h if full else None
+    return np.array(rates)
 
 
 class _DistanceEstimate:
@@ -1458,6 +1539,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
     stalled = False
     estimate = _DistanceEstimate(extrapolate)
     watch = _DriftWatch(x.E, x.V, on_drift, target, scale)
+    record = []  # a NewtonStep per step taken
 
     def ends(res, slack=1.0):  # the stopping test (Notes) at ``slack`` times the tolerance, or the last iteration
         return (res <= slack * tol and estimate.error <= target) or it >= max_iter or watch.stop
@@ -1473,14 +1555,16 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
     while True:
         grad = direction = None  # the last step's linearisation, Jacobian and coarse factor: not held beside the next's
         it += 1
+        t_it = time.perf_counter()
         plain = _plain_step(steps, x, Vp, activation, contact, lazy, ends)
         res = plain.res
         if ends(res):
             break
         grad, direction = timed(_newton_direction, steps, directions, x, plain, res, contact, estimate.error, target)
-        for _ in range(20):
+        cg_here = 0
+        for tries in range(1, 21):
             step, k = timed(direction, mu)
-            cg += k
+            cg_here += k
             taken, trial, trials = None, None, ()
             if step is not None and np.any(step):
                 taken, trial, trials = _line_search(steps, x, step, activation, alphas, contact)
@@ -1491,10 +1575,12 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
                 # a step cut short by collision detection, not by the energy, keeps the damping
                 full = taken == 1.0 or (contact is not None and taken == trials[0])
                 predicted, fell = _predicted_fall(grad, step, taken), energies[-1] - x.E
+                agreement = fell / predicted if predicted > 0.0 else None
                 log.debug("newton %d: step %.3e h (alpha %g), model agreement %.3f", it, moved, taken,
-                          fell / predicted if predicted > 0.0 else np.nan)
+                          np.nan if agreement is None else agreement)
                 fast = (vanishing_damping and taken == 1.0 and contact is None and predicted > 0.0
                         and fell >= MODEL_AGREEMENT * predicted)
+                taken_with = mu
                 mu = _next_damping(mu, full, fast, res, vanishing_damping, contact=contact is not None)
                 break
             mu *= 8.0
@@ -1504,9 +1590,16 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
                 stalled = True
                 log.warning("newton with contact: no step lowers the energy at residual %.3e", res)
                 energies.append(x.E)
+                cg += cg_here
                 break
-            x = after
+            moved = float(np.abs(deformation(after.V - x.V, after.V)).max() / scale)
+            x, taken, taken_with, agreement = after, None, None, None
             estimate.plain(res)
+        cg += cg_here
+        record.append(NewtonStep(iteration=it, residual_h=res, kind="plain" if taken is None else "newton",
+                                 length_h=moved, alpha=taken, damping=taken_with, tries=tries,
+                                 cg_iterations=cg_here, model_agreement=agreement, energy=float(x.E),
+                                 estimate_h=float(estimate.error), seconds=time.perf_counter() - t_it))
         log.debug("newton %d: residual %.3e, error estimate %.3e, energy %.6e, mu %.1e",
                   it, res, estimate.error, x.E, mu,
                   extra={"progress": {"event": "newton", "iteration": it, "residual_h": res,
@@ -1523,7 +1616,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
     if contact is None:
         return SolveStats(points=plain.G, converged=done, iterations=it, residual=res,
                           energies=energies + [steps.orient(plain.G, activation).energy], cg_iterations=cg,
-                          error_estimate=error, drift=drift)
+                          error_estimate=error, drift=drift, newton_steps=record)
     return SolveStats(points=x.V, converged=done, iterations=it, residual=res,
                       energies=energies + [x.E], cg_iterations=cg, contact_pairs=x.state.active,
-                      contact_energy=x.state.energy, error_estimate=error, drift=drift)
+                      contact_energy=x.state.energy, error_estimate=error, drift=drift, newton_steps=record)

@@ -140,6 +140,14 @@ class Result:
     drift : dict or None
         The first frame whose Newton solve drifted between near-equal states
         (:attr:`gdfe.solver.SolveStats.drift`, with its ``frame``); None when none did.
+    newton_steps : list of gdfe.solver.newton.NewtonStep
+        Every Newton step of the last frame's solve: its residual, length, fraction taken, damping,
+        CG iterations, the quadratic model's agreement and seconds (empty for the alternation);
+        :func:`gdfe.solver.newton.convergence_rates` gives its contractions.
+    start_levels : list of gdfe.solver.starts.StartLevel
+        The levels of the first frame's multilevel start (``init="multilevel"``), the coarsest first:
+        each one's cells, iterations, residual and seconds; empty for the other starts and where the
+        returned frames were solved with contact.
     """
 
     design: Design
@@ -161,6 +169,8 @@ class Result:
     tol: float = None
     error_estimate_mm: float = None
     drift: dict = None
+    newton_steps: list = dataclasses.field(default_factory=list)
+    start_levels: list = dataclasses.field(default_factory=list)
 
     @property
     def penetrates(self) -> bool:
@@ -452,7 +462,7 @@ def _solve_and_check(design, method, contact, dhat, init, start, steps, tol, max
                   seconds=seconds, frames=run.frames, activation=acts, frame_iterations=run.per_frame,
                   method=method, timings=timings, penetration=pens[-1], contact=report, frame_penetration=pens,
                   tol=tol, error_estimate_mm=None if run.error_estimate is None else run.error_estimate * design.h,
-                  drift=run.drift)
+                  drift=run.drift, newton_steps=run.newton_steps, start_levels=run.start_levels)
 
 
 class _Crossed(Exception):
@@ -520,6 +530,8 @@ class _FrameRun:
     contact_energy: float = 0.0
     error_estimate: float = None
     drift: dict = None
+    newton_steps: list = dataclasses.field(default_factory=list)
+    start_levels: list = dataclasses.field(default_factory=list)
 
 
 def _check_frames(solver, frames, watch=None, known=None):
@@ -549,20 +561,21 @@ def _check_frames(solver, frames, watch=None, known=None):
     return pens, time.perf_counter() - t0
 
 
-def _first_start(solver, design, init, start, seed, a, beside=None):
+def _first_start(solver, design, init, start, seed, a, beside=None, record=None):
     """The starting shape of the first frame, at activation ``a``.
 
     ``start`` is a given shape with the activation it is meant for, ``(V, a_start)``: at a
     lower ``a`` it is taken that fraction of the way from the flat print. ``beside``, a
     function of no arguments, runs beside the multilevel start on the solver's second thread
-    (:func:`gdfe.solver.threads.side_by_side`): the set-up of the solve that follows.
+    (:func:`gdfe.solver.threads.side_by_side`): the set-up of the solve that follows. ``record``,
+    a list, is given the multilevel start's levels (:func:`gdfe.solver.starts.multilevel_start`).
     """
     V = design.mesh.points.copy()
     if init == "linear":
         return solver.linearised_start(V, a)
     if init == "multilevel":
         t_start = time.perf_counter()
-        V, _ = side_by_side(lambda: multilevel_start(design, a), beside or (lambda: None))
+        V, _ = side_by_side(lambda: multilevel_start(design, a, record), beside or (lambda: None))
         solver.timings["start"] = solver.timings.get("start", 0.0) + time.perf_counter() - t_start
         return V
     if init == "given":
@@ -613,6 +626,7 @@ def _run_frames(solver, acts, method, term, *, init, start, seed, tol, max_iter,
     frames = [V.copy()]
     converged, total, res, energies, per_frame = True, 0, 0.0, [], []
     stats, drift = None, None
+    levels_made = []  # the first frame's multilevel start, level by level
     for k, a in enumerate(acts[1:]):
         frame_its = 0
         log.debug("frame %d/%d: activation %.3g%s", k + 1, len(acts) - 1, a, "" if term is None else ", with contact",
@@ -620,7 +634,7 @@ def _run_frames(solver, acts, method, term, *, init, start, seed, tol, max_iter,
         if term is None:
             if k == 0:
                 V = _first_start(solver, design, init, start, seed, a, beside=functools.partial(
-                    _prepare, solver, method, a, monitor))
+                    _prepare, solver, method, a, monitor), record=levels_made)
             watch = None if monitor is None else functools.partial(monitor, k + 1)
             stats = solver.solve(V, a, method=method, tol=tol, max_iter=max_iter, history=history,
                                  on_drift=on_drift, monitor=watch)
@@ -659,4 +673,5 @@ def _run_frames(solver, acts, method, term, *, init, start, seed, tol, max_iter,
                         k + 1, len(acts) - 1, a, res, stats.iterations)
     return _FrameRun(frames=frames, converged=bool(converged), total=total, residual=res, energies=energies,
                      per_frame=per_frame, contact_pairs=stats.contact_pairs, contact_energy=stats.contact_energy,
-                     error_estimate=stats.error_estimate, drift=drift)
+                     error_estimate=stats.error_estimate, drift=drift, newton_steps=list(stats.newton_steps),
+                     start_levels=levels_made)
