@@ -163,7 +163,7 @@ def test_the_penetration_check_reports_its_chunks(caplog):
 
 
 @pytest.mark.parametrize("run", ["turn", "recycle3", "windows", "steps", "medians", "inplace", "coarse40k", "watch",
-                                 "watch2", "heap", "quads"])
+                                 "watch2", "heap", "quads", "records"])
 def test_the_time_estimate_is_within_its_stated_factor_of_the_benchmark(run):
     """``gdfe.resources.CALIBRATION`` says "half to twice their estimated time": every sheet of the latest
     benchmarks of the default solver (10^3 to 10^6 cells, the corrugation and the Figure 8 plates)
@@ -198,14 +198,15 @@ def test_the_time_estimate_is_within_its_stated_factor_of_the_4e6_sheet():
 
 def test_the_memory_estimate_covers_every_measured_peak_of_the_large_sheets():
     """An estimate that says a run fits must not be below what the run takes: every peak measured in
-    the four latest benchmarks (watch and watch2 the same code, heap with the C heap's setting of
-    gdfe.resources.solve_heap, quads with the gap search by quadrilaterals; 7.8*10^4 to 10^6 cells), the
+    the five latest benchmarks (watch and watch2 the same code, heap with the C heap's setting of
+    gdfe.resources.solve_heap, quads with the gap search by quadrilaterals, records the same solves with
+    their steps on record; 7.8*10^4 to 10^6 cells), the
     two 4*10^6-cell runs (before and with that setting) and the 785 456-cell run lies under its estimate,
     and the estimate is not more than 1.4 times any of them."""
-    rows = [s for run in ("watch", "watch2", "heap", "quads")
+    rows = [s for run in ("watch", "watch2", "heap", "quads", "records")
             for s in json.loads((ROOT / "docs/bench" / run / "bench.json").read_text())["sheets"]
             if s["cells"] >= 50_000] + _measured_large_runs()
-    assert len(rows) == 23
+    assert len(rows) == 28
     for row in rows:
         ratio = estimate_run(row["cells"], points=row["points"]).memory_bytes / 2**20 / row["peak_rss_mib"]
         assert 1.0 <= ratio <= 1.4, (row["design"], row["cells"], ratio)
