@@ -42,6 +42,11 @@ def test_hinge_and_simulate_of_one_hinge_say_the_same_in_the_same_words(hinge_fi
         else:
             assert hinge[key] == sim[key], (key, hinge[key], sim[key])
     assert "seconds" in hinge and "seconds" in sim
+    # the last frame's Newton steps, one per iteration but the last, which finds the test met
+    for out in (hinge, sim):
+        assert len(out["newton_steps"]) == out["frame_iterations"][-1] - 1
+        assert [s["iteration"] for s in out["newton_steps"]] == list(range(1, out["frame_iterations"][-1]))
+    assert sim["start_levels"] == []  # a hinge starts from the linearised start
     # the old keys of gdfe hinge stay for a release, beside the new ones, and say what replaces them
     assert hinge["alpha_rad"] == hinge["fold_angle_rad"] and hinge["L_mm"] == hinge["length_mm"] == 1.6
     assert hinge["deprecated_keys"]["alpha_rad"] == "fold_angle_rad"

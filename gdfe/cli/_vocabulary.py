@@ -83,6 +83,10 @@ VOCABULARY = {
     "energy": ("", "elastic energy of the result", ()),
     "drift": ("", "drift between near-equal states, or null", ()),
     "error_estimate_mm": ("mm", "estimated distance to the solution", ()),
+    "newton_steps": ("", "the last frame's Newton steps: residual, length and estimate in units of h, fraction "
+                         "taken, damping, CG iterations, the model's agreement, energy, seconds", ()),
+    "start_levels": ("", "the multilevel start's levels, the coarsest first: cells, iterations, residual in "
+                         "units of h, whether converged or drifted, seconds", ()),
     "penetration_mm": ("mm", "deepest self-penetration (0 when none)", ()),
     "penetration": ("", "the self-penetration check", ()),
     "contact": ("", "whether the solve used self-contact", ()),

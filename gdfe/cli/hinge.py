@@ -87,6 +87,7 @@ def _run(args, folder):
         "iterations": res.iterations, "frame_iterations": list(res.frame_iterations), "converged": res.converged,
         "residual": res.residual,
         "seconds": res.seconds, "n_cells": design.n_cells, "method": res.method,
+        "newton_steps": [step.as_dict() for step in res.newton_steps],
     }
     out["contraction_source"] = design.meta.get("contraction_source")
     for key in ("process", "process_used", "process_unused"):

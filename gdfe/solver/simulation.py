@@ -188,7 +188,8 @@ class Result:
     def summary(self) -> dict:
         """The numbers of the result for JSON: convergence, cost, and the penetration check.
 
-        ``penetration_mm`` is the deepest self-penetration of any frame (0 when none),
+        ``newton_steps`` and ``start_levels`` are :attr:`newton_steps` and :attr:`start_levels` as dicts
+        (the levels without their steps). ``penetration_mm`` is the deepest self-penetration of any frame (0 when none),
         ``contact`` whether the solve used self-contact; ``penetration`` and
         ``contact_info`` give the details (:meth:`Penetration.as_dict`,
         :meth:`ContactReport.as_dict`).
@@ -199,7 +200,8 @@ class Result:
                "n_points": int(self.design.mesh.n_points), "method": self.method,
                "frames": len(self.frames), "tol": None if self.tol is None else float(self.tol),
                "error_estimate_mm": None if self.error_estimate_mm is None else float(self.error_estimate_mm),
-               "drift": self.drift}
+               "drift": self.drift, "newton_steps": [s.as_dict() for s in self.newton_steps],
+               "start_levels": [lv.as_dict(steps=False) for lv in self.start_levels]}
         if self.penetration is not None:
             depth = max((p.depth_mm for p in self.frame_penetration), default=self.penetration.depth_mm)
             out["penetration_mm"] = float(depth)
