@@ -138,11 +138,14 @@ GOALS = {
     "sheet_1e6": "10^6-cell sheets converged in <= 60 lower-bound iterations' time, peak memory <= 6 GiB",
     "lower_bound": "time per iteration within 2x of the lower bound (solve + batched SVD)",
     "growth": "cost growth: fitted exponent of time against cell count",
+    "newton": "the 10^5-cell Figure 8 twist in <= 8 Newton iterations, its last full step under a tenth of the one "
+              "before",
     "gpu": "on a GPU: 10^6 cells <= 10 s (optional)",
 }
 #: Limits of the goals above.
 HINGE_SECONDS = 0.1
 SHEET_BOUND_ITERATIONS = {"sheet": 40, "sheet_1e6": 60}
+TWIST_ITERATIONS = 8
 SHEET_1E6_MIB = 6 * 1024
 FEM_RATIO = 20.0
 
@@ -787,6 +790,23 @@ def _sheet_verdict(key, rows, machine):
             "met": bool(met), "cores": machine["cores"]}
 
 
+def _newton_verdict(rows):
+    """The twist's Newton iterations against :data:`TWIST_ITERATIONS`, and every 10^5 sheet's last contractions
+    of full steps (:func:`gdfe.solver.newton.convergence_rates`): superlinear where they fall towards 0."""
+    rates = {f"{r.get('design', 'corrugation')} {r['cells']}": [float(x) for x in convergence_rates(
+        [NewtonStep(**d) for d in r.get("newton_steps", [])])[-3:]] for r in rows}
+    twist = [r for r in rows if r.get("design") == "fig08-twist"]
+    if not twist:
+        return {"goal": GOALS["newton"], "value": None, "met": None, "last_contractions": rates,
+                "note": "no 10^5-cell twist in this run"}
+    r = twist[0]
+    last = rates[f"fig08-twist {r['cells']}"]
+    return {"goal": GOALS["newton"], "value": r["iterations"], "last_contractions": rates,
+            "met": bool(r["converged"] and r["iterations"] <= TWIST_ITERATIONS and bool(last) and last[-1] < 0.1),
+            "note": "value: the twist's iterations (its last finds the test met); last_contractions: each sheet's "
+                    "last three length ratios of consecutive full steps"}
+
+
 def _verdicts(result, hinge_verdict, cfg):
     sheets = [r for r in result["sheets"] if "skipped" not in r]
     v = {"hinges": hinge_verdict}
@@ -841,6 +861,7 @@ def _verdicts(result, hinge_verdict, cfg):
                                         "peak_rss_mib": last["peak_rss_mib"] * scale ** max(mem_expo, 1.0),
                                         "note": "not run: extrapolated from the largest sheet with the fitted "
                                                 "exponents (memory at least linear)"}
+    v["newton"] = _newton_verdict([r for r in sheets if 50_000 <= r["cells"] <= 200_000])
     from gdfe.solver.device import gpu_available
 
     v["gpu"] = {"goal": GOALS["gpu"], "value": None, "met": None,
@@ -1060,6 +1081,9 @@ def format_table(res):
                 f"{p['design']} {p['cells']}: {p['seconds']:.3g} s, {p['bound_iterations']:.0f} x bound, "
                 f"{p['bound_polar_iterations']:.0f} x bound with the polar iteration, {p['peak_rss_mib']:.0f} MiB"
                 for p in v["sheets"]) + ")"
+        if key == "newton" and v.get("last_contractions"):
+            extra = " iterations; last contractions " + "; ".join(
+                f"{name}: {', '.join(f'{x:.2g}' for x in xs) or '-'}" for name, xs in v["last_contractions"].items())
         if v.get("fem_value") is not None:
             extra = f" (FEM hinge levels: {v['fem_value']:.2f})"
         if "projected_1e6" in v:

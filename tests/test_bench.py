@@ -39,7 +39,8 @@ def test_quick_bench_reports_every_section_and_verdict(capsys, tmp_path):
         assert row["start_levels"] == []  # below MULTILEVEL_CELLS: the linearised start
     assert "skipped" in res["fem_comparison"]
     v = res["verdicts"]
-    assert set(v) == {"hinges", "fem", "sheet", "sheet_1e6", "lower_bound", "growth", "gpu"}
+    assert set(v) == {"hinges", "fem", "sheet", "sheet_1e6", "lower_bound", "growth", "newton", "gpu"}
+    assert v["newton"]["met"] is None  # no 10^5-cell twist in --quick
     assert v["gpu"]["note"].startswith("not measured") and v["gpu"]["met"] is None
     assert isinstance(v["hinges"]["met"], bool)
     assert isinstance(v["lower_bound"]["met"], bool)
@@ -207,3 +208,22 @@ def test_fem_ratio_where_the_fem_does_not_get_there_is_a_lower_bound_from_its_fi
     assert by[3e-3]["fem_extrapolated"] and by[3e-3]["ratio_at_least"] == pytest.approx(500.0 / 0.03)
     assert by[1e-3]["ratio_at_least"] == pytest.approx(5000.0)
     assert [_measured_ratio(a) for a in at] == [pytest.approx(2000.0), pytest.approx(500 / 0.03), pytest.approx(5000.0)]
+
+
+def test_the_newton_verdict_reads_the_twist_iterations_and_its_last_contraction():
+    from studies.bench import _newton_verdict
+
+    def row(design, iterations, lengths, converged=True):
+        steps = [{"iteration": k + 1, "residual_h": 1.0, "kind": "newton", "length_h": x, "alpha": 1.0,
+                  "damping": 1e-6, "tries": 1, "cg_iterations": 3, "model_agreement": 1.0, "energy": 1.0,
+                  "estimate_h": x, "seconds": 0.1} for k, x in enumerate(lengths)]
+        return {"design": design, "cells": 99_856, "iterations": iterations, "converged": converged,
+                "newton_steps": steps}
+
+    fast = [1e-2, 1e-3, 1e-5]
+    assert _newton_verdict([row("fig08-twist", 8, fast), row("corrugation", 6, [1e-2, 5e-3])])["met"] is True
+    assert _newton_verdict([row("fig08-twist", 9, fast)])["met"] is False  # too many iterations
+    assert _newton_verdict([row("fig08-twist", 8, [1e-2, 5e-3, 2.5e-3])])["met"] is False  # linear at the end
+    assert _newton_verdict([row("fig08-twist", 8, fast, converged=False)])["met"] is False
+    v = _newton_verdict([row("corrugation", 6, [1e-2, 5e-3])])
+    assert v["met"] is None and v["last_contractions"] == {"corrugation 99856": [0.5]}
