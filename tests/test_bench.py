@@ -227,3 +227,23 @@ def test_the_newton_verdict_reads_the_twist_iterations_and_its_last_contraction(
     assert _newton_verdict([row("fig08-twist", 8, fast, converged=False)])["met"] is False
     v = _newton_verdict([row("corrugation", 6, [1e-2, 5e-3])])
     assert v["met"] is None and v["last_contractions"] == {"corrugation 99856": [0.5]}
+
+
+def test_the_gpu_verdict_times_the_sheets_that_ran_on_the_gpu():
+    from studies.bench import GPU_SECONDS, _gpu_verdict
+
+    cpu_rows = [{"design": "corrugation", "cells": 1_000_000, "device": "cpu", "seconds": 300.0, "converged": True,
+                 "energy": 0.66}]
+    assert _gpu_verdict(cpu_rows, gpu_here=False)["note"].startswith("not measured: no GPU here")
+    assert _gpu_verdict(cpu_rows, gpu_here=True)["note"] == "not measured: a GPU is here but no sheet ran on it"
+    answer = {"energy": 0.0655, "iterations": 6, "seconds": 12.0, "energy_relative_difference": 1e-15,
+              "max_distance_mm": 1e-9}
+    small = {"design": "corrugation", "cells": 99_856, "device": "gpu", "seconds": 3.0, "converged": True,
+             "energy": 0.0655, "cpu_answer": answer}
+    v = _gpu_verdict([small], gpu_here=True)
+    assert v["met"] is None and v["agreement"] == {"corrugation 99856": answer}
+    for seconds, met in ((0.5 * GPU_SECONDS, True), (2 * GPU_SECONDS, False)):
+        big = {"design": "corrugation", "cells": 1_000_000, "device": "gpu", "seconds": seconds, "converged": True,
+               "energy": 0.66}
+        v = _gpu_verdict([small, big], gpu_here=True)
+        assert v["value"] == seconds and v["met"] is met and v["energy"] == 0.66

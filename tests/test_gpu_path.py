@@ -200,6 +200,7 @@ def test_simulate_names_its_device(monkeypatch):
         gdfe.simulate(des, device="cuda")
     a, b = gdfe.simulate(des, device="cpu"), gdfe.simulate(des)  # "auto" is the CPU here
     assert a.converged and b.converged and a.energy == b.energy
+    assert a.device == b.device == "cpu" and a.summary()["device"] == "cpu"
 
 
 def test_vanishing_damping_keeps_the_answer_and_the_stopping_test():

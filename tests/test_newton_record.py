@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 import gdfe
+from gdfe.measure import rigid_align
 from gdfe.solver import STEP_TOL_FACTOR, Solver, default_tol
 from gdfe.solver import newton as nw
 from gdfe.solver.newton import NewtonStep, convergence_rates
@@ -26,10 +27,8 @@ def test_convergence_rates_are_those_of_consecutive_full_steps():
 
 def _aligned_distance(A, B):
     """The largest vertex distance of ``A`` from ``B`` after the best rigid motion (the energy ignores it)."""
-    a, b = A - A.mean(0), B - B.mean(0)
-    U, _, Vt = np.linalg.svd(a.T @ b)
-    R = U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))]) @ Vt
-    return float(np.linalg.norm(a @ R - b, axis=1).max())
+    Q, t = rigid_align(A, B)
+    return float(np.linalg.norm(A @ Q.T + t - B, axis=1).max())
 
 
 @pytest.mark.parametrize("method", ["newton", "newton-cg"])

@@ -79,6 +79,7 @@ VOCABULARY = {
     "residual": ("", "the solver's final residual", ()),
     "seconds": ("s", "wall time of the run", ()),
     "method": ("", "solver method", ()),
+    "device": ("", "where the solver's array work ran: 'cpu' or 'gpu'", ()),
     "tol": ("", "the solver's tolerance [units of h]", ()),
     "energy": ("", "elastic energy of the result", ()),
     "drift": ("", "drift between near-equal states, or null", ()),

@@ -144,6 +144,9 @@ class Result:
         Every Newton step of the last frame's solve: its residual, length, fraction taken, damping,
         CG iterations, the quadratic model's agreement and seconds (empty for the alternation);
         :func:`gdfe.solver.newton.convergence_rates` gives its contractions.
+    device : str
+        Where the solve's array work ran, ``"cpu"`` or ``"gpu"`` (``device="auto"``'s choice, see
+        :func:`simulate`).
     start_levels : list of gdfe.solver.starts.StartLevel
         The levels of the first frame's multilevel start (``init="multilevel"``), the coarsest first:
         each one's cells, iterations, residual and seconds; empty for the other starts and where the
@@ -171,6 +174,7 @@ class Result:
     drift: dict = None
     newton_steps: list = dataclasses.field(default_factory=list)
     start_levels: list = dataclasses.field(default_factory=list)
+    device: str = "cpu"
 
     @property
     def penetrates(self) -> bool:
@@ -198,7 +202,8 @@ class Result:
                "residual": float(self.residual), "energy": float(self.energy),
                "seconds": float(self.seconds), "n_elements": int(self.design.n_cells),
                "n_points": int(self.design.mesh.n_points), "method": self.method,
-               "frames": len(self.frames), "tol": None if self.tol is None else float(self.tol),
+               "frames": len(self.frames), "device": self.device,
+               "tol": None if self.tol is None else float(self.tol),
                "error_estimate_mm": None if self.error_estimate_mm is None else float(self.error_estimate_mm),
                "drift": self.drift, "newton_steps": [s.as_dict() for s in self.newton_steps],
                "start_levels": [lv.as_dict(steps=False) for lv in self.start_levels]}
@@ -464,7 +469,8 @@ def _solve_and_check(design, method, contact, dhat, init, start, steps, tol, max
                   seconds=seconds, frames=run.frames, activation=acts, frame_iterations=run.per_frame,
                   method=method, timings=timings, penetration=pens[-1], contact=report, frame_penetration=pens,
                   tol=tol, error_estimate_mm=None if run.error_estimate is None else run.error_estimate * design.h,
-                  drift=run.drift, newton_steps=run.newton_steps, start_levels=run.start_levels)
+                  drift=run.drift, newton_steps=run.newton_steps, start_levels=run.start_levels,
+                  device=solver.device)
 
 
 class _Crossed(Exception):
