@@ -91,3 +91,24 @@ def test_the_result_carries_the_last_frame_steps_and_the_start_levels():
     np.testing.assert_array_equal([s.energy for s in res.newton_steps], res.energy_history[1:res.iterations])
     assert gdfe.simulate(des, contact="off", init="linear").start_levels == []
     assert gdfe.simulate(des, method="plain", contact="off", max_iter=3).newton_steps == []
+
+
+def test_a_contact_solve_where_no_step_lowers_the_energy_stops_unconverged_and_says_so(caplog):
+    """Collision detection that allows no move at all: every direction and the plain step are cut to nothing,
+    the solve stops at once, not converged, and its record ends in a step of kind "none"."""
+    import logging
+    import types
+
+    des = gdfe.hinge(2.6, d=0.33)
+    sv = Solver(des)
+    V0 = sv.linearised_start(des.mesh.points.copy(), 1.0)
+    state = types.SimpleNamespace(energy=0.0, active=0)
+    blocked = types.SimpleNamespace(evaluate=lambda V: state, gradient=lambda s: np.zeros((des.mesh.n_points, 3)),
+                                    hessian=lambda s, project=True: None, max_step=lambda V, W, s: 0.0)
+    directions = nw.factorised_directions(sv.reduced_hessian, sv.rest(1.0))
+    with caplog.at_level(logging.WARNING, logger="gdfe.solver.newton"):
+        stats = nw.solve_newton(sv, V0, 1.0, 1e-9, 50, directions, contact=blocked)
+    assert not stats.converged and stats.iterations == 1 and "no step lowers the energy" in caplog.text
+    (only,) = stats.newton_steps
+    assert only.kind == "none" and only.length_h == 0.0 and only.alpha is None and only.tries == 20
+    assert np.array_equal(stats.points, V0) and stats.energies == [stats.energies[0]] * 3

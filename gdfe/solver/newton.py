@@ -1219,12 +1219,13 @@ class NewtonStep:
     ----------
     iteration : int
         The solve's iteration (1 for the first step); the last iteration takes no step, it
-        finds the stopping test met (or the limit reached).
+        finds the stopping test met (or the limit reached), unless it is a ``"none"``.
     residual_h : float
         The plain step's residual at the iterate the step starts from (units of h).
     kind : str
-        ``"newton"``, or ``"plain"`` where no damped Newton direction lowered the energy and the
-        plain step was taken instead.
+        ``"newton"``; ``"plain"`` where no damped Newton direction lowered the energy and the
+        plain step was taken instead; ``"none"`` where with contact neither did, and the solve
+        stopped there (the shape unchanged, ``length_h`` 0).
     length_h : float
         The step's largest vertex move, its rigid part left out (:func:`deformation`; units of h).
     alpha : float or None
@@ -1534,13 +1535,12 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
     if contact is not None and not np.isfinite(x.state.energy):
         raise GdfeError("V0: the start crosses or touches itself; the contact solve needs a start free "
                         "of self-intersection")
-    energies = [x.E]
+    E0 = x.E
     mu = 1e-3
-    it = cg = 0
-    stalled = False
+    it = 0
     estimate = _DistanceEstimate(extrapolate)
     watch = _DriftWatch(x.E, x.V, on_drift, target, scale)
-    record = []  # a NewtonStep per step taken
+    record = []  # a NewtonStep per iteration that tried a step: the energies and CG iterations are theirs
 
     def ends(res, slack=1.0):  # the stopping test (Notes) at ``slack`` times the tolerance, or the last iteration
         return (res <= slack * tol and estimate.error <= target) or it >= max_iter or watch.stop
@@ -1561,6 +1561,7 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
         res = plain.res
         if ends(res):
             break
+        before = x
         grad, direction = timed(_newton_direction, steps, directions, x, plain, res, contact, estimate.error, target)
         cg_here = 0
         for tries in range(1, 21):
@@ -1575,44 +1576,44 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
                 estimate.step(moved, full=taken == 1.0)
                 # a step cut short by collision detection, not by the energy, keeps the damping
                 full = taken == 1.0 or (contact is not None and taken == trials[0])
-                predicted, fell = _predicted_fall(grad, step, taken), energies[-1] - x.E
+                predicted, fell = _predicted_fall(grad, step, taken), before.E - x.E
                 agreement = fell / predicted if predicted > 0.0 else None
                 log.debug("newton %d: step %.3e h (alpha %g), model agreement %.3f", it, moved, taken,
                           np.nan if agreement is None else agreement)
                 fast = (vanishing_damping and taken == 1.0 and contact is None and predicted > 0.0
                         and fell >= MODEL_AGREEMENT * predicted)
-                taken_with = mu
+                kind, taken_with = "newton", mu
                 mu = _next_damping(mu, full, fast, res, vanishing_damping, contact=contact is not None)
                 break
             mu *= 8.0
         else:  # no descent even with heavy damping: take the plain step
             after = _plain_fallback(steps, x, plain, Vp, activation, contact)
-            if after is None:
-                stalled = True
-                log.warning("newton with contact: no step lowers the energy at residual %.3e", res)
-                energies.append(x.E)
-                cg += cg_here
-                break
-            moved = float(np.abs(deformation(after.V - x.V, after.V)).max() / scale)
-            x, taken, taken_with, agreement = after, None, None, None
-            estimate.plain(res)
-        cg += cg_here
-        record.append(NewtonStep(iteration=it, residual_h=res, kind="plain" if taken is None else "newton",
+            kind, moved, taken, taken_with, agreement = "none", 0.0, None, None, None
+            if after is not None:
+                kind, moved = "plain", float(np.abs(deformation(after.V - x.V, after.V)).max() / scale)
+                x = after
+                estimate.plain(res)
+        record.append(NewtonStep(iteration=it, residual_h=res, kind=kind,
                                  length_h=moved, alpha=taken, damping=taken_with, tries=tries,
                                  cg_iterations=cg_here, model_agreement=agreement, energy=float(x.E),
                                  estimate_h=float(estimate.error), seconds=time.perf_counter() - t_it))
+        if kind == "none":  # with contact, no step lowers the energy: stopped, not converged
+            log.warning("newton with contact: no step lowers the energy at residual %.3e", res)
+            break
         log.debug("newton %d: residual %.3e, error estimate %.3e, energy %.6e, mu %.1e",
                   it, res, estimate.error, x.E, mu,
                   extra={"progress": {"event": "newton", "iteration": it, "residual_h": res,
                                       "estimate_h": estimate.error}})
         if steps.n > RELEASE_POINTS:
             _memory.release()
-        energies.append(x.E)
         if monitor is not None and contact is None:
             monitor(it, x.V)
         watch.update(it, x.E, estimate.error, x.V)
     drift = watch.report(it)
     error = estimate.error
+    stalled = bool(record) and record[-1].kind == "none"
+    energies = [E0] + [r.energy for r in record]
+    cg = sum(r.cg_iterations for r in record)
     done = res <= tol and error <= target and not (stalled or watch.stop)
     if contact is None:
         return SolveStats(points=plain.G, converged=done, iterations=it, residual=res,

@@ -73,9 +73,9 @@ class StartLevel:
 
     def as_dict(self, steps=True):
         """The record as a dict of plain Python values (for JSON); without its steps unless ``steps``."""
-        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "newton_steps"}
-        if steps:
-            out["newton_steps"] = [s.as_dict() for s in self.newton_steps]
+        out = dataclasses.asdict(self)  # the steps as dicts too
+        if not steps:
+            del out["newton_steps"]
         return out
 
 
