@@ -112,3 +112,13 @@ def test_a_contact_solve_where_no_step_lowers_the_energy_stops_unconverged_and_s
     (only,) = stats.newton_steps
     assert only.kind == "none" and only.length_h == 0.0 and only.alpha is None and only.tries == 20
     assert np.array_equal(stats.points, V0) and stats.energies == [stats.energies[0]] * 3
+
+
+@pytest.mark.parametrize("make", [nw.factorised_directions, nw.cg_directions])
+@pytest.mark.parametrize("floor", [0.0, -0.5, float("nan")])
+def test_a_clamp_that_is_not_positive_is_refused(make, floor):
+    """The clamp divides by each cell's clamped eigenvalues: at 0 or below a cell's zero eigenvalue would make
+    the Hessian infinite, so such a floor is refused by name before any solve."""
+    sv = Solver(gdfe.hinge(2.6, d=0.33))
+    with pytest.raises(gdfe.GdfeError, match="floor: expected a positive finite number"):
+        make(sv.reduced_hessian, sv.rest(1.0), floor=floor)

@@ -24,7 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from gdfe import _memory
-from gdfe._validation import GdfeError, check_choice, check_int
+from gdfe._validation import GdfeError, check_choice, check_int, check_positive
 from gdfe.solver.device import dot as _dot
 from gdfe.solver.energy import SolveStats
 from gdfe.solver.linalg import Factoriser, factorise
@@ -907,6 +907,7 @@ def factorised_directions(hessian, rest, floor=HESSIAN_FLOOR):
 
     Returns ``directions(Q, S, grad, res, extra=None, error=inf, target=0, V=None)``, see :func:`solve_newton`.
     """
+    floor = float(check_positive("floor", floor))  # at 0 or below a cell's zero eigenvalue would divide by zero
     steps = hessian.steps
     fdof = (3 * steps.free[:, None] + np.arange(3)).ravel()
     n = steps.n
@@ -1008,6 +1009,7 @@ def cg_directions(hessian, rest, floor=HESSIAN_FLOOR, cg_rtol=None, cg_max=200, 
     """
     preconditioner = check_choice("preconditioner", preconditioner, PRECONDITIONERS)
     forcing = check_choice("forcing", forcing, FORCINGS)
+    floor = float(check_positive("floor", floor))  # at 0 or below a cell's zero eigenvalue would divide by zero
     if preconditioner == "amg":
         return _amg_directions(hessian, rest, floor, cg_rtol, cg_max, forcing, device)
     kept = {}  # the last coarse factor and the damping it was made with
