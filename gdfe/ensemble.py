@@ -39,6 +39,7 @@ import time
 import numpy as np
 
 from gdfe._validation import GdfeError, check_int, check_number
+from gdfe.measure import rigid_align
 
 __all__ = ["LEVEL", "PILOT", "Ensemble", "fold_ensemble", "secant_starts", "has_predictive_content", "align_rigidly",
            "wilson_interval", "write_spread", "plot_band"]
@@ -63,17 +64,10 @@ def has_predictive_content(model):
 
 
 def align_rigidly(points, reference):
-    """``points`` moved by the rotation and translation that bring them closest (least squares) to ``reference``.
-
-    The Kabsch solution: the SVD of the centred cross-covariance, its reflection removed.
-    """
-    p = np.asarray(points, float)
-    q = np.asarray(reference, float)
-    pc, qc = p.mean(0), q.mean(0)
-    u, _, vt = np.linalg.svd((p - pc).T @ (q - qc))
-    s = np.sign(np.linalg.det(u @ vt)) or 1.0
-    rot = u @ np.diag([1.0, 1.0, s]) @ vt
-    return (p - pc) @ rot + qc
+    """``points`` moved by the rotation and translation that bring them closest (least squares) to
+    ``reference``: :func:`gdfe.measure.rigid_align` applied."""
+    Q, t = rigid_align(points, reference)
+    return np.asarray(points, float) @ Q.T + t
 
 
 def wilson_interval(k, n, level=LEVEL):

@@ -1036,21 +1036,45 @@ def format_table(res):
     lines = [f"gdfe bench ({res['mode']}): {m['cores']} cores, {m['platform']}, factorisation {m['factor_backend']},"
              f" load average {_fmt(m['load_average_1min_at_start'], '.2f')} at start,"
              f" {_fmt(m.get('load_average_1min_at_end'), '.2f')} at end", ""]
-    if res["hinges"]:
-        lines.append("Figure 6 hinges (d = 0.33 mm, h = 0.29 mm)")
-        lines.append(f"  {'L mm':>5} {'cells':>6} {'method':>9} {'conv':>5} {'iter':>6} {'seconds':>8} {'angle rad':>9}")
-        for r in res["hinges"]:
-            lines.append(f"  {r['L_mm']:5.2g} {r['cells']:6d} {r['method']:>9} {str(r['converged']):>5} "
-                         f"{r['iterations']:6d} {r['seconds']:8.3f} {r['fold_angle_rad']:9.4f}")
-        lines.append("")
-    coarse = sorted({r["coarse_solver"] for r in res["sheets"] if "coarse_solver" in r})
-    lines += ["Mask sheets (corrugation: pixel 0.1 mm, R = 0.7; fig08: the 8 mm Figure 8 plate at the pixel that "
-              "gives the cell count, R = 0.6947; nz = 1); peak = max RSS of a child process over its first run"
-              + (f"; Newton-CG's coarse matrix: {', '.join(coarse)}" if coarse else "")]
+    lines += _hinge_lines(res["hinges"])
+    lines += _sheet_lines(res["sheets"])
+    lines += _steps_lines(res["sheets"])
+    lines += ["  (seconds = the median of the runs, bench.json's seconds_all, and the other columns the median "
+              "run's; start = the multilevel start's coarse levels, pen. = the penetration check, both inside the "
+              "total; s/iter = fine-level seconds per Newton iteration; bound = 3-column solve with the factorised "
+              "n x n matrix + batched SVD; t/bd = seconds over the bound, t/bd_p with the solver's polar iteration "
+              "instead of the SVD; LG = one orientation + one assembly step)", ""]
+    lines += _factorisation_lines(res["sheets"])
+    lines += _fem_lines(res["fem_comparison"])
+    lines += ["", "Goals"]
+    lines += [f"  {_verdict_word(v):>9}  {v['goal']}: {_verdict_value(v)}{_verdict_extra(key, v)}{_verdict_note(v)}"
+              for key, v in res["verdicts"].items()]
+    lines.append(f"\n({res['seconds']:.0f} s in all)")
+    return "\n".join(lines)
+
+
+def _hinge_lines(hinges):
+    """The Figure 6 hinges' table (none where the benchmark ran none)."""
+    if not hinges:
+        return []
+    lines = ["Figure 6 hinges (d = 0.33 mm, h = 0.29 mm)",
+             f"  {'L mm':>5} {'cells':>6} {'method':>9} {'conv':>5} {'iter':>6} {'seconds':>8} {'angle rad':>9}"]
+    for r in hinges:
+        lines.append(f"  {r['L_mm']:5.2g} {r['cells']:6d} {r['method']:>9} {str(r['converged']):>5} "
+                     f"{r['iterations']:6d} {r['seconds']:8.3f} {r['fold_angle_rad']:9.4f}")
+    return lines + [""]
+
+
+def _sheet_lines(sheets):
+    """The mask sheets' table: each solve beside its lower bound, then which solve each bound took."""
+    coarse = sorted({r["coarse_solver"] for r in sheets if "coarse_solver" in r})
+    lines = ["Mask sheets (corrugation: pixel 0.1 mm, R = 0.7; fig08: the 8 mm Figure 8 plate at the pixel that "
+             "gives the cell count, R = 0.6947; nz = 1); peak = max RSS of a child process over its first run"
+             + (f"; Newton-CG's coarse matrix: {', '.join(coarse)}" if coarse else "")]
     lines.append(f"  {'design':>12} {'cells':>7} {'pixel':>6} {'conv':>5} {'iter':>4} {'seconds':>8} {'start':>6} "
                  f"{'pen.':>5} {'peak MiB':>8} {'s/iter':>7} | {'solve':>7} {'svd':>6} {'polar':>6} {'bound':>6} "
                  f"{'t/bd':>6} {'t/bd_p':>6} {'LG/bd':>5}")
-    for r in res["sheets"]:
+    for r in sheets:
         if "skipped" in r:
             lines.append(f"  {r.get('design', 'corrugation'):>12} {r['cells']:7d} skipped: {r['skipped']}")
             continue
@@ -1062,30 +1086,33 @@ def format_table(res):
                      f"{lb['solve_3rhs_s']:7.4f} {lb['svd_s']:6.3f} {lb.get('polar_s', float('nan')):6.3f} "
                      f"{lb['bound_s']:6.3f} {lb.get('bound_iterations', float('nan')):6.0f} "
                      f"{lb.get('bound_polar_iterations', float('nan')):6.0f} {lb['local_global_ratio']:5.2f}{drift}")
-    for r in res["sheets"]:  # which solve the bound took, and the multigrid's bound beside a factor's
+    for r in sheets:  # which solve the bound took, and the multigrid's bound beside a factor's
         lb = r.get("lower_bound")
         if lb is None or lb.get("bound_iterations_multigrid") is None or lb["solve_kind"].startswith("multigrid"):
             continue
         lines.append(f"  {r.get('design', 'corrugation'):>12} {r['cells']:7d}: the bound's solve is the "
                      f"{lb['solve_kind']}; with the multigrid's CG to 1e-11 instead ({lb['multigrid_solve_3rhs_s']:.3g} s) "
                      f"t/bd would be {lb['bound_iterations_multigrid']:.0f}")
-    lines += _steps_lines(res["sheets"])
-    lines += ["  (seconds = the median of the runs, bench.json's seconds_all, and the other columns the median "
-              "run's; start = the multilevel start's coarse levels, pen. = the penetration check, both inside the "
-              "total; s/iter = fine-level seconds per Newton iteration; bound = 3-column solve with the factorised "
-              "n x n matrix + batched SVD; t/bd = seconds over the bound, t/bd_p with the solver's polar iteration "
-              "instead of the SVD; LG = one orientation + one assembly step)", "",
-              "Sparse factorisation (median seconds: factorise / solve)"]
-    for r in res["sheets"]:
+    return lines
+
+
+def _factorisation_lines(sheets):
+    """The sparse factorisations' timings per sheet."""
+    lines = ["Sparse factorisation (median seconds: factorise / solve)"]
+    for r in sheets:
         if "skipped" in r:
             continue
         for kind, backends in r["factorisation"].items():
             cells = ", ".join(f"{k} {v['factorise_s']:.3g} / {v['solve_s']:.3g}" if "skipped" not in v
                               else f"{k} skipped" for k, v in backends.items())
             lines.append(f"  {r.get('design', 'corrugation'):>12} {r['cells']:7d} {kind:>10}: {cells}")
-    fc = res["fem_comparison"]
-    lines += ["", f"GDFE against the nonlinear reference FEM (hinge L = {FEM_HINGE[0]} mm, d = {FEM_HINGE[1]} mm, "
-                  f"width {FEM_WIDTH} mm, panels {FEM_PANEL} mm)"]
+    return lines
+
+
+def _fem_lines(fc):
+    """GDFE against the nonlinear reference FEM: the levels, their limits and the ratios at equal error."""
+    lines = ["", f"GDFE against the nonlinear reference FEM (hinge L = {FEM_HINGE[0]} mm, d = {FEM_HINGE[1]} mm, "
+                 f"width {FEM_WIDTH} mm, panels {FEM_PANEL} mm)"]
     if "fem_reference" in fc:
         fr, gr, go = fc["fem_reference"], fc["gdfe_reference"], fc["gdfe_own_fold_reference"]
         lines.append(f"  fold measured on the outer {FOLD_PANEL_FRACTION:g} of each panel; limits by Richardson over "
@@ -1110,48 +1137,57 @@ def format_table(res):
                      f"{_fmt(a['ratio'], '.3g')}{least}")
     if "skipped" in fc:
         lines.append(f"  skipped: {fc['skipped']}")
-    lines += ["", "Goals"]
-    for key, v in res["verdicts"].items():
-        val = v["value"]
-        if isinstance(val, dict):
-            val = ", ".join(f"{k} {_fmt(x)}" for k, x in val.items())
-        else:
-            val = _fmt(val)
-        extra = ""
-        if "newton" in v:
-            dn = v["newton"]
-            extra = (f" with method {v['method']} (method newton: {dn['max_iterations']} iterations,"
-                     f" {dn['max_seconds']:.3g} s)")
-        if "solver_iteration_ratio" in v:
-            extra = f" (outer iteration of the solver used: {v['solver_iteration_ratio']:.1f}x)"
-        if key == "fem" and "at" in v:
-            parts = [f"{e}: {_fmt(x, '.3g')}" for e, x in v["at"].items()]
-            parts += [f"{e}: at least {_fmt(x, '.3g')}" for e, x in v.get("at_least", {}).items()]
-            extra = " (ratio at " + ", ".join(parts) + ")"
-            if v.get("at_extrapolated"):
-                extra += " (extrapolating the FEM, not used: " + ", ".join(
-                    f"{e}: {_fmt(x, '.3g')}" for e, x in v["at_extrapolated"].items()) + ")"
-        if key.startswith("sheet") and "sheets" in v:
-            extra = " bound iterations, worst " + str(v["worst"]) + " (" + "; ".join(
-                f"{p['design']} {p['cells']}: {p['seconds']:.3g} s, {p['bound_iterations']:.0f} x bound, "
-                f"{p['bound_polar_iterations']:.0f} x bound with the polar iteration, {p['peak_rss_mib']:.0f} MiB"
-                for p in v["sheets"]) + ")"
-        if key == "gpu" and v.get("agreement"):
-            extra = (" s" if v["value"] is not None else "") + "; against the CPU: " + "; ".join(
-                f"{name}: energy {a['energy_relative_difference']:.1e} apart, shapes {a['max_distance_mm']:.2g} mm "
-                f"({'agree' if a['agrees'] else 'DO NOT AGREE'}: at most {a['allowed_mm']:.2g} mm)"
-                for name, a in v["agreement"].items())
-        if key == "newton" and v.get("last_contractions"):
-            extra = " iterations; last contractions " + "; ".join(
-                f"{name}: {', '.join(f'{x:.2g}' for x in xs) or '-'}" for name, xs in v["last_contractions"].items())
-        if v.get("fem_value") is not None:
-            extra = f" (FEM hinge levels: {v['fem_value']:.2f})"
-        if "projected_1e6" in v:
-            pj = v["projected_1e6"]
-            extra += (f"; 10^6 cells not run, extrapolated {pj['seconds']:.3g} s and "
-                      f"{pj['peak_rss_mib'] / 1024:.2g} GiB from the fitted exponents")
-        note = f" [{v['note']}]" if v.get("note") and (v["met"] is None or "quick" in v["note"]
-                                                       or "extrapolated" in v["note"]) else ""
-        lines.append(f"  {_verdict_word(v):>9}  {v['goal']}: {val}{extra}{note}")
-    lines.append(f"\n({res['seconds']:.0f} s in all)")
-    return "\n".join(lines)
+    return lines
+
+
+def _verdict_value(v):
+    """A verdict's measured value as text (a dict of values as ``key value`` pairs)."""
+    val = v["value"]
+    if isinstance(val, dict):
+        return ", ".join(f"{k} {_fmt(x)}" for k, x in val.items())
+    return _fmt(val)
+
+
+def _verdict_note(v):
+    """A verdict's note where it qualifies the word shown (not measured, quick, extrapolated)."""
+    if v.get("note") and (v["met"] is None or "quick" in v["note"] or "extrapolated" in v["note"]):
+        return f" [{v['note']}]"
+    return ""
+
+
+def _verdict_extra(key, v):
+    """What a verdict line adds after its value: its method, ratios, sheets, agreement or projection."""
+    extra = ""
+    if "newton" in v:
+        dn = v["newton"]
+        extra = (f" with method {v['method']} (method newton: {dn['max_iterations']} iterations,"
+                 f" {dn['max_seconds']:.3g} s)")
+    if "solver_iteration_ratio" in v:
+        extra = f" (outer iteration of the solver used: {v['solver_iteration_ratio']:.1f}x)"
+    if key == "fem" and "at" in v:
+        parts = [f"{e}: {_fmt(x, '.3g')}" for e, x in v["at"].items()]
+        parts += [f"{e}: at least {_fmt(x, '.3g')}" for e, x in v.get("at_least", {}).items()]
+        extra = " (ratio at " + ", ".join(parts) + ")"
+        if v.get("at_extrapolated"):
+            extra += " (extrapolating the FEM, not used: " + ", ".join(
+                f"{e}: {_fmt(x, '.3g')}" for e, x in v["at_extrapolated"].items()) + ")"
+    if key.startswith("sheet") and "sheets" in v:
+        extra = " bound iterations, worst " + str(v["worst"]) + " (" + "; ".join(
+            f"{p['design']} {p['cells']}: {p['seconds']:.3g} s, {p['bound_iterations']:.0f} x bound, "
+            f"{p['bound_polar_iterations']:.0f} x bound with the polar iteration, {p['peak_rss_mib']:.0f} MiB"
+            for p in v["sheets"]) + ")"
+    if key == "gpu" and v.get("agreement"):
+        extra = (" s" if v["value"] is not None else "") + "; against the CPU: " + "; ".join(
+            f"{name}: energy {a['energy_relative_difference']:.1e} apart, shapes {a['max_distance_mm']:.2g} mm "
+            f"({'agree' if a['agrees'] else 'DO NOT AGREE'}: at most {a['allowed_mm']:.2g} mm)"
+            for name, a in v["agreement"].items())
+    if key == "newton" and v.get("last_contractions"):
+        extra = " iterations; last contractions " + "; ".join(
+            f"{name}: {', '.join(f'{x:.2g}' for x in xs) or '-'}" for name, xs in v["last_contractions"].items())
+    if v.get("fem_value") is not None:
+        extra = f" (FEM hinge levels: {v['fem_value']:.2f})"
+    if "projected_1e6" in v:
+        pj = v["projected_1e6"]
+        extra += (f"; 10^6 cells not run, extrapolated {pj['seconds']:.3g} s and "
+                  f"{pj['peak_rss_mib'] / 1024:.2g} GiB from the fitted exponents")
+    return extra
