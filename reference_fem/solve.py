@@ -66,6 +66,10 @@ class FemResult:
         Number of unknowns (3 per degree-of-freedom location).
     element : str
         Element type (``"hex2"`` triquadratic, ``"hexs2"`` serendipity, ``"hex1"`` trilinear).
+    linear_solver : str
+        What solved the linear systems: ``"superlu"`` (SciPy), ``"pardiso"`` (MKL PARDISO, the
+        ``fem-fast`` extra) or ``"amg"`` (:func:`reference_fem.linear_solvers.make_solver`). The
+        solve's time depends on it several-fold, so a timing is quoted with it.
     """
 
     strip: LayeredStrip
@@ -81,6 +85,7 @@ class FemResult:
     seconds: float
     dofs: int
     element: str
+    linear_solver: str
 
     @property
     def deformed(self) -> np.ndarray:
@@ -91,7 +96,8 @@ class FemResult:
         return {"nonlinear": self.nonlinear, "converged": self.converged,
                 "iterations": self.iterations, "residual": self.residual,
                 "load_steps": self.load_steps, "load_factor": self.load_factor,
-                "seconds": self.seconds, "dofs": self.dofs, "element": self.element}
+                "seconds": self.seconds, "dofs": self.dofs, "element": self.element,
+                "linear_solver": self.linear_solver}
 
 
 def _check(strip, material):
@@ -154,7 +160,7 @@ def solve_linear(strip: LayeredStrip, material: BilayerMaterial, *, element: str
     return FemResult(strip=strip, material=material, points=disc.X, displacement=u.reshape(-1, 3),
                      nonlinear=False, converged=bool(ok and res < 1e-8), iterations=1, residual=float(res),
                      load_steps=1, load_factor=1.0, seconds=time.perf_counter() - t0,
-                     dofs=disc.ndofs, element=element)
+                     dofs=disc.ndofs, element=element, linear_solver="superlu")
 
 
 def solve_nonlinear(strip: LayeredStrip, material: BilayerMaterial, *, element: str = "hex2",
@@ -222,7 +228,7 @@ def solve_nonlinear(strip: LayeredStrip, material: BilayerMaterial, *, element: 
     scale = max(np.linalg.norm(f_lin[free]), 1e-300)
 
     pattern = disc.pattern(free, upper=True)
-    factor, _ = make_solver(solver, free.size, disc.X, free)
+    factor, linear_solver = make_solver(solver, free.size, disc.X, free)
     steps_solver = TangentSolver(factor, LinearCost(), reuse)
 
     def solve_at(s_new, trial):
@@ -245,4 +251,5 @@ def solve_nonlinear(strip: LayeredStrip, material: BilayerMaterial, *, element: 
     return FemResult(strip=strip, material=material, points=disc.X, displacement=u.reshape(-1, 3),
                      nonlinear=True, converged=bool(converged), iterations=iterations,
                      residual=float(residual), load_steps=accepted, load_factor=float(s),
-                     seconds=time.perf_counter() - t0, dofs=disc.ndofs, element=element)
+                     seconds=time.perf_counter() - t0, dofs=disc.ndofs, element=element,
+                     linear_solver=linear_solver)

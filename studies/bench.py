@@ -111,7 +111,7 @@ DESIGNS = ("corrugation",) + FREEFORM
 SUPERLU_MAX_CELLS = 300_000
 #: Above this many cells it asks for no factorisation of the n x n matrix at all, and the bound's
 #: solve is the multigrid's: CHOLMOD's factor of the 4*10^6-cell sheet, made beside that sheet's
-#: solver, was killed for want of memory on 23.5 GiB (docs/solver.md, 4*10^6 cells).
+#: solver, was killed for want of memory on 23.5 GiB (docs/solver_history.md, 4*10^6 cells).
 FACTOR_MAX_CELLS = 2_000_000
 SHEET_PIXEL = 0.1
 SHEET_R = 0.7
@@ -649,7 +649,7 @@ def _fem_comparison(cfg, progress):
         fem_rows.append({"level": f"size {size:.3g} mm, {layers} layers/ply", "element_size_mm": size,
                          "layers_per_ply": layers, "elements": int(strip.n_elements), "dofs": int(res.dofs),
                          "seconds": med, "seconds_all": times, "alpha_rad": float(rf.fold_angle(res)),
-                         "converged": bool(res.converged)})
+                         "converged": bool(res.converged), "linear_solver": res.linear_solver})
     # the FEM's reference: Richardson over the levels refined by 2 (every size, layer and junction halved)
     by_size = {r["element_size_mm"]: r for r in fem_rows}
     halving = [by_size[s] for s in FEM_REFERENCE_SIZES if s in by_size]
@@ -1113,6 +1113,11 @@ def _fem_lines(fc):
     """GDFE against the nonlinear reference FEM: the levels, their limits and the ratios at equal error."""
     lines = ["", f"GDFE against the nonlinear reference FEM (hinge L = {FEM_HINGE[0]} mm, d = {FEM_HINGE[1]} mm, "
                  f"width {FEM_WIDTH} mm, panels {FEM_PANEL} mm)"]
+    used = sorted({r["linear_solver"] for r in fc.get("fem_nonlinear", []) if "linear_solver" in r})
+    if used:
+        lines.append(f"  the FEM's linear solves: {', '.join(used)}"
+                     + (" (MKL PARDISO, pip install -e \".[fem-fast]\", factorises the same tangents several "
+                        "times faster)" if "pardiso" not in used else ""))
     if "fem_reference" in fc:
         fr, gr, go = fc["fem_reference"], fc["gdfe_reference"], fc["gdfe_own_fold_reference"]
         lines.append(f"  fold measured on the outer {FOLD_PANEL_FRACTION:g} of each panel; limits by Richardson over "

@@ -210,6 +210,21 @@ def test_fem_ratio_where_the_fem_does_not_get_there_is_a_lower_bound_from_its_fi
     assert [_measured_ratio(a) for a in at] == [pytest.approx(2000.0), pytest.approx(500 / 0.03), pytest.approx(5000.0)]
 
 
+def test_the_fem_lines_name_the_fems_linear_solver():
+    """A FEM timing is quoted with what factorised its tangents, and SuperLU's with the faster option."""
+    from studies.bench import _fem_lines
+
+    def rows(solver):
+        return {"fem_nonlinear": [{"level": "size 0.5 mm", "elements": 62, "seconds": 0.4, "alpha_rad": 0.48,
+                                   "relative_error": 2e-2, "linear_solver": solver}]}
+
+    slow, fast = "\n".join(_fem_lines(rows("superlu"))), "\n".join(_fem_lines(rows("pardiso")))
+    assert "the FEM's linear solves: superlu (MKL PARDISO" in slow and "fem-fast" in slow
+    assert "the FEM's linear solves: pardiso" in fast and "fem-fast" not in fast
+    old = {"fem_nonlinear": [{k: v for k, v in rows("superlu")["fem_nonlinear"][0].items() if k != "linear_solver"}]}
+    assert "linear solves" not in "\n".join(_fem_lines(old))  # a bench.json from before the field
+
+
 def test_the_newton_verdict_reads_the_twist_iterations_and_its_last_contraction():
     from studies.bench import _newton_verdict
 

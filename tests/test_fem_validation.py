@@ -2,7 +2,7 @@
 
 import pytest
 
-from reference_fem import BilayerMaterial, Segment, hinge_mesh, layered_strip, solve_nonlinear, strip_mesh
+from reference_fem import BilayerMaterial, Segment, hinge_mesh, layered_strip, solve_linear, solve_nonlinear, strip_mesh
 
 
 @pytest.mark.parametrize("kwargs,match", [
@@ -82,3 +82,18 @@ def test_load_step_whose_extrapolated_start_inverts_an_element_is_cut():
     res = solve_nonlinear(strip, BilayerMaterial(eigenstrain=-0.7))
     assert res.converged and res.load_factor == 1.0
     assert res.load_steps >= 4
+
+
+def test_a_solve_names_its_linear_solver():
+    """The FEM's time depends several-fold on what factorised its tangents: the result says which."""
+    import importlib.util
+
+    from reference_fem.linear_solvers import AMG_THRESHOLD
+
+    strip = hinge_mesh(1.6, 0.33, resolution="coarse")
+    res = solve_nonlinear(strip, BilayerMaterial())
+    assert res.dofs < AMG_THRESHOLD  # a direct solve: PARDISO where installed
+    expected = "pardiso" if importlib.util.find_spec("pypardiso") else "superlu"
+    assert res.linear_solver == expected
+    assert res.summary()["linear_solver"] == expected
+    assert solve_linear(strip, BilayerMaterial()).linear_solver == "superlu"

@@ -384,7 +384,7 @@ def _plain_pcg(apply_H, apply_P, rhs, rtol, max_iter, start, flexible):
 @pytest.mark.parametrize("flexible", [False, True])
 def test_newton_cg_products_and_cg_in_place_give_the_bits_of_their_formulas(flexible):
     """The Hessian product, the deflated preconditioner and CG write into arrays they own instead of
-    making temporaries (docs/solver.md): each gives the numbers of its formula, to the last bit."""
+    making temporaries (docs/solver_history.md): each gives the numbers of its formula, to the last bit."""
     import gdfe.solver.newton as nw
 
     sv, V, o, rest, hs = _plate_newton_system()

@@ -60,7 +60,7 @@ MU_RESIDUAL_CONTACT = 1e-3
 #: model predicted, the damping falls to that floor at once (a full step the model predicted less
 #: well divides it by 4). Divided by 16 instead, the damping that starts every
 #: solve at 1e-3 needed four steps to fall below the soft modes' curvature, and the 10^5-cell twist
-#: took 10 steps where it takes 8 (docs/solver.md, the damping's fall).
+#: took 10 steps where it takes 8 (docs/solver_history.md, the damping's fall).
 MODEL_AGREEMENT = 0.75
 #: A Newton solve also needs its estimated distance to the solution below
 #: ``STEP_TOL_FACTOR * tol`` (units of h); see :func:`solve_newton`.
@@ -111,7 +111,7 @@ COARSE_REUSE_DAMPING = 1e-2
 #: the sum over cells absorbs and the energy test guards. At 1 (every cell's Hessian positive semi-definite)
 #: the factorised Newton converged only linearly (0.22 a step on the 2.6 mm Figure 6 hinge, 0.52 on a
 #: 9 mm one), and the 5 and 9 mm hinges stopped 7.4 and 11.6 nm from the solution where their test asked
-#: 7.0 and 11.0 nm (docs/solver.md).
+#: 7.0 and 11.0 nm (docs/solver_history.md).
 HESSIAN_FLOOR = 0.5
 #: Drift (see :func:`solve_newton`): over this many iterations ...
 DRIFT_WINDOW = 10
@@ -446,7 +446,7 @@ class ReducedHessian:
     #: not where smoothed aggregation solves it (:attr:`coarse_solver`). At 40 000 the 10^6-cell
     #: corrugation keeps the 10^5 sheet's 5 pixels (1.7 h, two layers of 201 x 201 coarse vertices):
     #: from one start its fine level took 200 CG iterations in 19 steps where 10 000 (10 pixels)
-    #: took 379 in 18, and 357 s against 424 s (docs/solver.md); 20 000 (8 pixels) took 382.
+    #: took 379 in 18, and 357 s against 424 s (docs/solver_history.md); 20 000 (8 pixels) took 382.
     coarse_cells = 40_000
     #: How the coarse matrix is solved (:data:`COARSE_SOLVERS`): ``"factor"`` (the default), a
     #: sparse factorisation at every step, which bounds the grid to :attr:`coarse_cells` cells
@@ -455,7 +455,7 @@ class ReducedHessian:
     #: needs pyamg), whose cost grows with the grid's size and no faster, so the grid keeps its
     #: spacing at every size. On the 10^6-cell corrugation, against a factorised grid of 10 000 cells
     #: per layer, ``"amg"`` took 20 % fewer CG iterations but about the same time, and 420 MiB more
-    #: (docs/solver.md): not the default.
+    #: (docs/solver_history.md): not the default.
     coarse_solver = "factor"
     #: V-cycles of one coarse solve with ``"amg"`` (a stationary iteration from zero: a fixed,
     #: symmetric operator, so that CG's preconditioner does not change from one iteration to the next).
@@ -464,7 +464,7 @@ class ReducedHessian:
     #: (:mod:`gdfe.solver.recycling`): the soft modes the grid cannot carry; none with contact.
     #: A direction that is nearly all a turn about the pinned vertex is not recycled
     #: (:func:`gdfe.solver.recycling.mostly_turn`): kept, tight solves never stopped. 0 turns recycling
-    #: off (docs/solver.md).
+    #: off (docs/solver_history.md).
     recycle = 2
     #: How ``method="newton-cg"`` combines the n x n and coarse corrections
     #: (:data:`TWO_LEVELS`, see :meth:`operator`).

@@ -135,7 +135,7 @@ def mostly_turn(u, V, pin):
     by half of it back (Rayleigh quotients of the directions 1e-13 to 1e-17), and no stop after
     200 steps. Such a direction is not recycled. One that is a turn only in part is recycled
     whole: with every direction's turn taken out, the 10^6-cell corrugation took 21 fine steps
-    instead of 18 (docs/solver.md).
+    instead of 18 (docs/solver_history.md).
     """
     rest = without_turn(u, V, pin)
     return bool(_dot(rest, rest) < TURN_SHARE ** 2 * _dot(u, u))

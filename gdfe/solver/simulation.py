@@ -348,7 +348,7 @@ def simulate(design, *, method="auto", init="auto", steps=1, tol=None, max_iter=
     A design whose rotations (a 3 x 3 matrix of doubles per vertex or cell) exceed 32 MiB, from
     about 2.3*10^5 cells in one layer, is solved with C's ``malloc`` serving arrays of that size from
     its heap, reused (:func:`gdfe.resources.solve_heap`): the same arithmetic, 10-14 % shorter at 10^6
-    cells (docs/solver.md).
+    cells (docs/solver_history.md).
 
     With contact the shape depends on the path as well as on the design: two flaps that
     meet can end either way round, and two ends that meet head-on can stop there (a local

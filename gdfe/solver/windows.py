@@ -38,7 +38,7 @@ __all__ = ["BLOCK_CELLS", "GOOD_MARGIN", "EmbeddedWindows"]
 
 #: Pixels along each side of a block; a window is 2 x 2 blocks. At the converged 10^5-cell
 #: corrugation and Figure 8 twist 100 % and 99.9 % of the windows of 8 x 8 pixels were good; blocks
-#: of 3, 6 or 8 pixels made the check no faster, of 2 slower (docs/solver.md).
+#: of 3, 6 or 8 pixels made the check no faster, of 2 slower (docs/solver_history.md).
 BLOCK_CELLS = 4
 #: A window is good when its bound on ``||F_t - A||`` is below this fraction of ``sigma_min(A)``.
 GOOD_MARGIN = 0.99
