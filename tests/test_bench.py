@@ -269,3 +269,64 @@ def test_the_gpu_verdict_times_the_sheets_that_ran_on_the_gpu():
         assert v["value"] == seconds and v["met"] is met
     del big["cpu_answer"]  # not compared with the CPU: not met, whatever the time
     assert _gpu_verdict([big], gpu_here=True)["met"] is False
+
+
+def test_the_exponents_span_over_the_runs_is_that_of_every_choice_of_runs():
+    """The fit's least and greatest exponent over each size's runs, against every choice of one run per size."""
+    import itertools
+
+    from studies.bench import _exponent_span, _fit_exponent
+
+    rng = np.random.default_rng(3)
+    cells = [1_024, 10_000, 99_856, 1_000_000]
+    runs = [list(2e-4 * c ** 1.1 * rng.uniform(0.85, 1.2, size=k)) for c, k in zip(cells, (3, 3, 2, 1))]
+    every = [_fit_exponent(cells, pick) for pick in itertools.product(*runs)]
+    assert _exponent_span(cells, runs) == pytest.approx([min(every), max(every)], abs=1e-12)
+    one = [[r[0]] for r in runs]
+    lo, hi = _exponent_span(cells, one)
+    assert lo == pytest.approx(hi) == pytest.approx(_fit_exponent(cells, [r[0] for r in runs]))
+
+
+def _corrugation(cells, runs):
+    return {"design": "corrugation", "cells": cells, "converged": True, "seconds": float(np.median(runs)),
+            "seconds_all": runs}
+
+
+def test_the_growth_verdict_is_judged_over_the_span_of_sizes_and_marginal_within_the_runs_spread():
+    from studies.bench import GROWTH_EXPONENT, _growth_verdict, _verdict_word
+
+    def sheets(expo, spread):
+        return [_corrugation(c, [t * (1 - spread), t, t * (1 + spread)])
+                for c in (1_024, 10_000, 99_856) for t in [1e-4 * c ** expo]] + [_corrugation(10 ** 6, [1e-4 * 1e6 ** expo])]
+
+    v = _growth_verdict(sheets(1.05, 0.01), None)
+    assert v["met"] is True and not v["marginal"] and _verdict_word(v) == "MET"
+    assert v["span"][0] <= v["value"] <= v["span"][1] < GROWTH_EXPONENT
+    v = _growth_verdict(sheets(1.09, 0.2), None)  # met by the medians, not by the fastest small runs
+    assert v["met"] is True and v["marginal"] and _verdict_word(v) == "MARGINAL" and v["span"][1] > GROWTH_EXPONENT
+    v = _growth_verdict(sheets(1.2, 0.01), None)
+    assert v["met"] is False and not v["marginal"] and _verdict_word(v) == "NOT MET"
+    v = _growth_verdict(sheets(1.2, 0.01)[:3], None)  # no 10^6 sheet: stated, not judged
+    assert _verdict_word(v) == "STATED" and "stated, not judged" in v["note"]
+    assert _verdict_word(_growth_verdict(sheets(1.2, 0.01)[:1], None)) == "STATED"
+
+
+def test_a_sheet_verdict_met_by_its_median_runs_but_not_its_slowest_is_marginal():
+    from studies.bench import _sheet_verdict, _verdict_word
+
+    def row(runs):
+        return {**_corrugation(99_856, runs), "iterations": 6, "peak_rss_mib": 700.0,
+                "lower_bound": {"bound_s": 0.3, "bound_iterations": float(np.median(runs)) / 0.3,
+                                "bound_polar_iterations": 70.0}}
+
+    machine = {"cores": 2}
+    v = _sheet_verdict("sheet", [row([10.8, 11.1, 11.4])], machine)  # 36-38 x bound
+    assert _verdict_word(v) == "MET" and v["sheets"][0]["bound_iterations_runs"] == pytest.approx([36.0, 38.0])
+    v = _sheet_verdict("sheet", [row([10.8, 11.4, 12.6])], machine)  # 36-42: the median 38 meets 40
+    assert _verdict_word(v) == "MARGINAL" and v["met"] is True
+    v = _sheet_verdict("sheet", [row([12.3, 12.6, 12.9])], machine)  # 41-43
+    assert _verdict_word(v) == "NOT MET" and not v["marginal"]
+    text = format_table({"machine": {"cores": 2, "platform": "p", "factor_backend": "superlu",
+                                     "load_average_1min_at_start": 0.1}, "mode": "full", "hinges": [],
+                         "sheets": [], "fem_comparison": {}, "verdicts": {"sheet": v}, "seconds": 1.0})
+    assert "(41-43 over its 3 runs)" in text
