@@ -152,6 +152,7 @@ GOALS = {
 }
 #: Limits of the goals above.
 HINGE_SECONDS = 0.1
+HINGE_ITERATIONS = 50
 SHEET_BOUND_ITERATIONS = {"sheet": 40, "sheet_1e6": 60}
 #: The exponent of time against cells, fitted over corrugation sheets from at most GROWTH_SPAN[0] to at
 #: least GROWTH_SPAN[1] cells (below that span the exponent is stated, not judged).
@@ -255,19 +256,31 @@ def _hinges(cfg):
                          "iterations": res.iterations, "residual": res.residual, "seconds": med,
                          "seconds_all": times, "fold_angle_rad": float(gdfe.fold_angle(res)),
                          "auto": method == auto})
+    return rows, _hinge_verdict(rows, cfg["hinge_cells"])
+
+
+def _hinge_verdict(rows, hinge_cells):
+    """The hinges solved by the default method against :data:`HINGE_ITERATIONS` and :data:`HINGE_SECONDS`
+    (their median runs; MARGINAL where their fastest and slowest runs disagree), the factorised Newton beside."""
     acc = [r for r in rows if r["auto"]]
     worst_it = max(r["iterations"] for r in acc)
-    worst_s = max(r["seconds"] for r in acc)
     newton = [r for r in rows if r["method"] == "newton"]
+
+    def met_at(seconds):  # seconds: a hinge's time, from its row
+        return bool(all(r["converged"] for r in acc) and worst_it <= HINGE_ITERATIONS
+                    and max(seconds(r) for r in acc) <= HINGE_SECONDS)
+
     verdict = {"goal": GOALS["hinges"], "method": "/".join(sorted({r["method"] for r in acc})),
-               "value": {"max_iterations": worst_it, "max_seconds": worst_s},
+               "value": {"max_iterations": worst_it, "max_seconds": max(r["seconds"] for r in acc)},
                "newton": {"max_iterations": max(r["iterations"] for r in newton),
-                                  "max_seconds": max(r["seconds"] for r in newton),
-                                  "converged": all(r["converged"] for r in newton)},
-               "met": bool(all(r["converged"] for r in acc) and worst_it <= 50 and worst_s <= HINGE_SECONDS)}
-    if cfg["hinge_cells"] != 16:
-        verdict["note"] = f"measured at {cfg['hinge_cells']} cells across the hinge (--quick), not the default 16"
-    return rows, verdict
+                          "max_seconds": max(r["seconds"] for r in newton),
+                          "converged": all(r["converged"] for r in newton)},
+               "met": met_at(lambda r: r["seconds"]),
+               "marginal": (met_at(lambda r: min(r.get("seconds_all") or [r["seconds"]]))
+                            != met_at(lambda r: max(r.get("seconds_all") or [r["seconds"]])))}
+    if hinge_cells != 16:
+        verdict["note"] = f"measured at {hinge_cells} cells across the hinge (--quick), not the default 16"
+    return verdict
 
 
 # -- 2-4. sheets, lower bound, factorisations (one child process per size) ---------------------

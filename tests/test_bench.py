@@ -330,3 +330,22 @@ def test_a_sheet_verdict_met_by_its_median_runs_but_not_its_slowest_is_marginal(
                                      "load_average_1min_at_start": 0.1}, "mode": "full", "hinges": [],
                          "sheets": [], "fem_comparison": {}, "verdicts": {"sheet": v}, "seconds": 1.0})
     assert "(41-43 over its 3 runs)" in text
+
+
+def test_the_hinge_verdict_is_marginal_where_its_fastest_and_slowest_runs_disagree():
+    from studies.bench import HINGE_SECONDS, _hinge_verdict, _verdict_word
+
+    def rows(runs):
+        out = [{"method": "newton", "auto": False, "converged": True, "iterations": 7, "seconds": 0.2,
+                "seconds_all": [0.2]}]
+        return out + [{"method": "newton-cg", "auto": True, "converged": True, "iterations": 11,
+                       "seconds": float(np.median(r)), "seconds_all": r} for r in runs]
+
+    fast = [0.5 * HINGE_SECONDS] * 3
+    v = _hinge_verdict(rows([fast, [0.7 * HINGE_SECONDS, 0.8 * HINGE_SECONDS, 0.9 * HINGE_SECONDS]]), 16)
+    assert _verdict_word(v) == "MET" and v["value"] == {"max_iterations": 11, "max_seconds": 0.8 * HINGE_SECONDS}
+    assert v["newton"] == {"max_iterations": 7, "max_seconds": 0.2, "converged": True}
+    v = _hinge_verdict(rows([fast, [0.8 * HINGE_SECONDS, 0.9 * HINGE_SECONDS, 1.3 * HINGE_SECONDS]]), 16)
+    assert v["met"] is True and _verdict_word(v) == "MARGINAL"
+    v = _hinge_verdict(rows([fast, [1.1 * HINGE_SECONDS] * 3]), 4)
+    assert _verdict_word(v) == "NOT MET" and "--quick" in v["note"]
