@@ -134,7 +134,7 @@ COMMAND_KEYS = {
     "data": ("data_sets", "copied_to"),
     "calibrate": ("K_ci95", "description", "p", "p_ci95", "r2_uncentered", "R_at_d", "model_file"),
     "fem hinge": ("E_ratio", "eigenstrain", "nu", "kappa_per_mm", "kappa_L_rad", "timoshenko_kappa_per_mm",
-                  "dofs", "element", "load_factor", "load_steps", "nonlinear", "resolution"),
+                  "dofs", "element", "load_factor", "load_steps", "nonlinear", "resolution", "linear_solver"),
     "fem timoshenko-check": ("checks", "passed"),
     "fem calibrate": ("E_ratio", "eigenstrain", "at_bound", "tests", "loo_params", "profile", "settings"),
     "fem simulate": ("design", "E_ratio", "eigenstrain", "nu", "dofs", "element", "load_factor", "load_steps",

@@ -143,7 +143,7 @@ def _cmd_hinge(args) -> int:
         f"hinge L = {args.length:g} mm, d = {args.d:g} mm, h = {args.h:g} mm "
         f"(E_passive/E_active = {ratio:.4g}, eigenstrain = {eps:.4g}, nu = {args.nu:g})",
         f"  solve        {'nonlinear (' + args.model + ')' if args.nonlinear else 'linear'}, "
-        f"{res.dofs} dofs, {res.seconds:.2f} s, {res.iterations} iteration(s), "
+        f"{res.dofs} dofs, {res.seconds:.2f} s ({res.linear_solver}), {res.iterations} iteration(s), "
         f"{'converged' if res.converged else 'NOT CONVERGED'} (residual {res.residual:.1e})",
         *([] if res.converged else [
             f"  NOT CONVERGED: the values below are at {res.load_factor:.3f} of the eigenstrain"]),
