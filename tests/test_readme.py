@@ -132,3 +132,30 @@ def test_docs_build_strict(tmp_path):
 
     for name in STUDIES:
         assert (site / "studies" / name / "index.html").is_file(), name
+
+
+def test_the_install_page_lists_every_extra_with_its_packages():
+    """docs/install.md's table of extras says what pyproject.toml installs: every extra, and each
+    package of it by name (the version bounds stay in pyproject.toml)."""
+    import tomllib
+
+    extras = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["optional-dependencies"]
+    rows, cells = {}, {}
+    for line in (DOCS / "install.md").read_text().splitlines():
+        m = re.match(r"\|\s*`([\w-]+)`\s*\|([^|]*)\|", line)
+        if m:
+            cells[m.group(1)] = m.group(2)
+            rows[m.group(1)] = {p.strip() for p in m.group(2).split(",") if p.strip()}
+    assert set(rows) == set(extras)
+
+    def names(packages):
+        return {re.split(r"[<>=!~\[ ]", p, maxsplit=1)[0] for p in packages}
+
+    for name, packages in extras.items():
+        if name != "all":
+            assert rows[name] == names(packages), (f"docs/install.md, extra {name}: lists {sorted(rows[name])}, "
+                                                   f"installs {sorted(names(packages))}")
+    # the table's "all": everything above but these
+    left_out = re.search(r"everything above but (.*?) \(", cells["all"]).group(1)
+    left_out = set(re.findall(r"`([\w-]+)`", left_out))
+    assert names(extras["all"]) == set().union(*(names(p) for n, p in extras.items() if n not in left_out | {"all"}))
