@@ -1226,8 +1226,8 @@ def _verdict_value(v):
 
 
 def _verdict_note(v):
-    """A verdict's note where it qualifies the word shown (not measured, quick, extrapolated)."""
-    if v.get("note") and (v["met"] is None or "quick" in v["note"] or "extrapolated" in v["note"]):
+    """A verdict's note where it qualifies the word shown (not measured, quick, extrapolated, not judged)."""
+    if v.get("note") and (v["met"] is None or any(w in v["note"] for w in ("quick", "extrapolated", "not judged"))):
         return f" [{v['note']}]"
     return ""
 

@@ -293,7 +293,7 @@ def _corrugation(cells, runs):
 
 
 def test_the_growth_verdict_is_judged_over_the_span_of_sizes_and_marginal_within_the_runs_spread():
-    from studies.bench import GROWTH_EXPONENT, _growth_verdict, _verdict_word
+    from studies.bench import GROWTH_EXPONENT, _growth_verdict, _verdict_note, _verdict_word
 
     def sheets(expo, spread):
         return [_corrugation(c, [t * (1 - spread), t, t * (1 + spread)])
@@ -308,6 +308,7 @@ def test_the_growth_verdict_is_judged_over_the_span_of_sizes_and_marginal_within
     assert v["met"] is False and not v["marginal"] and _verdict_word(v) == "NOT MET"
     v = _growth_verdict(sheets(1.2, 0.01)[:3], None)  # no 10^6 sheet: stated, not judged
     assert _verdict_word(v) == "STATED" and "stated, not judged" in v["note"]
+    assert "stated, not judged: the sheets span 1024 to 99856 cells" in _verdict_note(v)
     assert _verdict_word(_growth_verdict(sheets(1.2, 0.01)[:1], None)) == "STATED"
 
 
