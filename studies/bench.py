@@ -1252,7 +1252,7 @@ def _verdict_extra(key, v):
         extra = " bound iterations, worst " + str(v["worst"]) + " (" + "; ".join(
             f"{p['design']} {p['cells']}: {p['seconds']:.3g} s, {p['bound_iterations']:.0f} x bound"
             + (f" ({p['bound_iterations_runs'][0]:.0f}-{p['bound_iterations_runs'][1]:.0f} over its {p['runs']} runs)"
-               if p.get("runs", 1) > 1 else "")
+               if p.get("runs", 1) > 1 else " (one run: its spread not measured)" if p.get("runs") == 1 else "")
             + f", {p['bound_polar_iterations']:.0f} x bound with the polar iteration, {p['peak_rss_mib']:.0f} MiB"
             for p in v["sheets"]) + ")"
     if key == "gpu" and v.get("agreement"):

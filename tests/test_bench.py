@@ -331,6 +331,12 @@ def test_a_sheet_verdict_met_by_its_median_runs_but_not_its_slowest_is_marginal(
                                      "load_average_1min_at_start": 0.1}, "mode": "full", "hinges": [],
                          "sheets": [], "fem_comparison": {}, "verdicts": {"sheet": v}, "seconds": 1.0})
     assert "(41-43 over its 3 runs)" in text
+    one = _sheet_verdict("sheet_1e6", [{**row([300.0]), "cells": 1_000_000}], machine)
+    assert not one["marginal"] and one["sheets"][0]["runs"] == 1
+    text = format_table({"machine": {"cores": 2, "platform": "p", "factor_backend": "superlu",
+                                     "load_average_1min_at_start": 0.1}, "mode": "full", "hinges": [],
+                         "sheets": [], "fem_comparison": {}, "verdicts": {"sheet_1e6": one}, "seconds": 1.0})
+    assert "1000000: 300 s, 1000 x bound (one run: its spread not measured)" in text
 
 
 def test_the_hinge_verdict_is_marginal_where_its_fastest_and_slowest_runs_disagree():
