@@ -159,3 +159,40 @@ def test_the_install_page_lists_every_extra_with_its_packages():
     left_out = re.search(r"everything above but (.*?) \(", cells["all"]).group(1)
     left_out = set(re.findall(r"`([\w-]+)`", left_out))
     assert names(extras["all"]) == set().union(*(names(p) for n, p in extras.items() if n not in left_out | {"all"}))
+
+
+#: The solver page's names of the benchmark's designs.
+_BENCH_DESIGNS = {"corrugation": "corrugation", "Figure 8 twist": "fig08-twist", "Figure 8 dome": "fig08-dome",
+                  "Figure 8 saddle": "fig08-saddle"}
+
+
+def test_the_solver_pages_table_is_the_benchmark_it_cites():
+    """docs/solver.md's "Where it stands" table gives the numbers of the bench.json it links to: each
+    row's iterations, seconds, start, peak, bound and bound iterations, so that a new benchmark cannot
+    leave the page telling the old one's."""
+    import json
+
+    text = (DOCS / "solver.md").read_text()
+    section = text[text.index("### Where it stands"):text.index("### The goals")]
+    folder = re.search(r"\]\(bench/(\w+)/bench\.txt\)", section).group(1)
+    sheets = {(r.get("design", "corrugation"), r["cells"]): r
+              for r in json.loads((DOCS / "bench" / folder / "bench.json").read_text())["sheets"]}
+    rows = [line for line in section.splitlines() if re.match(r"\| (corrugation|Figure 8 \w+) \|", line)]
+    assert len(rows) == len(sheets) >= 4
+
+    def num(s):
+        return float(s.replace(" ", "").split()[0]) if s.strip() not in ("–", "-") else None
+
+    for line in rows:
+        design, cells, its, seconds, split, peak, bound, times = [c.strip() for c in line.strip("|").split("|")]
+        r = sheets[(_BENCH_DESIGNS[design], int(cells.replace(" ", "")))]
+        lb = r["lower_bound"]
+        start, check = (num(x) for x in split.split("/"))
+        assert int(its) == r["iterations"], line
+        assert num(seconds) == pytest.approx(r["seconds"], rel=0.01, abs=0.005), line
+        assert start is None or start == pytest.approx(r["start_s"], rel=0.02, abs=0.05), line
+        assert check == pytest.approx(r["penetration_check_s"], rel=0.03, abs=0.005), line
+        assert num(peak.replace("MiB", "")) == pytest.approx(r["peak_rss_mib"], abs=0.5), line
+        unit = 1e-3 if bound.endswith("ms") else 1.0
+        assert num(bound.replace("ms", "").replace("s", "")) * unit == pytest.approx(lb["bound_s"], rel=0.02), line
+        assert int(times) == round(lb["bound_iterations"]), line
