@@ -356,3 +356,27 @@ def test_the_hinge_verdict_is_marginal_where_its_fastest_and_slowest_runs_disagr
     assert v["met"] is True and _verdict_word(v) == "MARGINAL"
     v = _hinge_verdict(rows([fast, [1.1 * HINGE_SECONDS] * 3]), 4)
     assert _verdict_word(v) == "NOT MET" and "--quick" in v["note"]
+
+
+def test_the_cpu_answer_compares_shapes_after_the_rigid_motion_and_claims_no_agreement_without_estimates():
+    """A shape solved again on the CPU agrees with itself moved rigidly; without an estimated distance there is
+    no bound to agree within."""
+    import dataclasses
+
+    from studies.bench import SHEET_PIXEL, SHEET_R, _cpu_answer
+
+    des = gdfe.from_masks(*mask_sheet(16), SHEET_PIXEL, SHEET_R, h=H, nz=1)
+    res = gdfe.simulate(des, method="auto", device="cpu")
+    c, s = np.cos(0.3), np.sin(0.3)
+    turned = res.points @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]).T + [1.0, 2.0, 3.0]
+    a = _cpu_answer(des, dataclasses.replace(res, points=turned))
+    assert a["agrees"] and a["max_distance_mm"] < 1e-9 and a["energy_relative_difference"] == 0.0
+    assert a["allowed_mm"] == pytest.approx(2 * res.error_estimate_mm)
+    a = _cpu_answer(des, dataclasses.replace(res, error_estimate_mm=None))
+    assert a["allowed_mm"] is None and not a["agrees"]
+    text = format_table({"machine": {"cores": 2, "platform": "p", "factor_backend": "superlu",
+                                     "load_average_1min_at_start": 0.1}, "mode": "full", "hinges": [],
+                         "sheets": [], "fem_comparison": {}, "seconds": 1.0,
+                         "verdicts": {"gpu": {"goal": "g", "value": None, "met": None, "note": "n",
+                                              "agreement": {"corrugation 256": a}}}})
+    assert "DO NOT AGREE: at most - mm" in text
