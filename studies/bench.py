@@ -550,7 +550,7 @@ def _exponent_span(cells, runs):
     ``w_i = (x_i - mean x) / sum (x_j - mean x)^2``, ``x = log cells``: its extremes take each size's
     fastest or slowest run by the sign of ``w_i``."""
     x = np.log(np.asarray(cells, float))
-    if x.size < 2:
+    if np.unique(x).size < 2:
         return None
     w = (x - x.mean()) / np.sum((x - x.mean()) ** 2)
     lo = np.log([min(r) for r in runs])
@@ -562,11 +562,13 @@ def _growth_verdict(corr, fem_expo):
     """The fitted exponent of the converged corrugation sheets (their median times), its span over their
     runs, and against :data:`GROWTH_EXPONENT` where the sheets span :data:`GROWTH_SPAN`."""
     cells = [r["cells"] for r in corr]
-    expo = _fit_exponent(cells, [r["seconds"] for r in corr]) if len(corr) >= 2 else None
+    # a slope needs two sizes: sheets of one cell count (--sizes 100,110 rounds both to 10 x 10) have none
+    expo = _fit_exponent(cells, [r["seconds"] for r in corr]) if len(set(cells)) >= 2 else None
     v = {"goal": GOALS["growth"], "value": expo, "fem_value": fem_expo,
          "note": "time ~ cells^exponent, least squares in log-log over the converged corrugation sheets' medians"}
     if expo is None:
-        return {**v, "met": None, "stated": True}
+        return {**v, "met": None, "stated": True,
+                "note": v["note"] + "; none: fewer than two sheet sizes" if corr else v["note"]}
     span = _exponent_span(cells, [r.get("seconds_all") or [r["seconds"]] for r in corr])
     v["span"] = span
     if min(cells) > GROWTH_SPAN[0] or max(cells) < GROWTH_SPAN[1]:

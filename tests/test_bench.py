@@ -310,6 +310,9 @@ def test_the_growth_verdict_is_judged_over_the_span_of_sizes_and_marginal_within
     assert _verdict_word(v) == "STATED" and "stated, not judged" in v["note"]
     assert "stated, not judged: the sheets span 1024 to 99856 cells" in _verdict_note(v)
     assert _verdict_word(_growth_verdict(sheets(1.2, 0.01)[:1], None)) == "STATED"
+    one_size = [_corrugation(1_024, [0.1]), _corrugation(1_024, [0.12])]  # two sheets, one cell count: no slope
+    v = _growth_verdict(one_size, None)
+    assert v["value"] is None and _verdict_word(v) == "STATED" and "fewer than two sheet sizes" in v["note"]
 
 
 def test_a_sheet_verdict_met_by_its_median_runs_but_not_its_slowest_is_marginal():
