@@ -495,3 +495,39 @@ def test_cg_at_negative_curvature_on_its_first_iteration_returns_the_preconditio
     r0 = b - apply_H(0.5 * b)
     assert k == 1
     np.testing.assert_allclose(x, 0.5 * b + apply_P(r0))
+
+
+def test_cg_from_a_coarse_start_that_climbs_stops_at_its_own_tolerance():
+    """A coarse space holding negative curvature (a recycled direction across a saddle) can give a start
+    ``x0`` with ``b^T x0 + r0^T P r0 < 0``: the balancing norm is then no norm, and CG measures from its
+    start's residual. Its square root was nan, which left CG with no stopping test (it ran on to
+    ``max_iter``) and handed nan to the forcing sequence."""
+    import warnings
+
+    import gdfe.solver.newton as nw
+
+    H = np.diag([-1.0, 2.0, 3.0, 4.0, 5.0, 6.0])
+    b = np.array([[3.0, 0.1, 0.1], [0.1, 0.1, 0.1]])
+
+    def apply_H(v):
+        return (H @ v.ravel()).reshape(-1, 3)
+
+    def apply_P(r):  # positive on the complement of the coarse space e_0, zero on it (A-DEF2's shape)
+        z = r.ravel() / np.diag(H)
+        z[0] = 0.0
+        return z.reshape(-1, 3)
+
+    def start(r):  # the exact coarse solve on e_0, where H is negative: x0 = -3 e_0 climbs
+        x0 = np.zeros(6)
+        x0[0] = r.ravel()[0] / H[0, 0]
+        return x0.reshape(-1, 3)
+    x0 = start(b)
+    r0 = b - apply_H(x0)
+    assert np.sum(b * x0) + np.sum(r0 * apply_P(r0)) < 0
+    seen = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        x, k = nw.pcg(apply_H, apply_P, b, lambda norm: seen.append(norm) or 1e-10, 500, start=start)
+    assert seen == [pytest.approx(np.sqrt(np.sum(r0 * apply_P(r0))), rel=1e-12)]
+    assert k == 1  # the preconditioner is H's inverse on the complement: one iteration solves it
+    np.testing.assert_allclose(x.ravel(), np.linalg.solve(H, b.ravel()), rtol=1e-12)

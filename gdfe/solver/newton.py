@@ -826,7 +826,8 @@ def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None, flexible=False, leave
     ``start`` (optional) gives the first iterate ``x0 = start(rhs)``, the coarse solution of
     a deflated CG (:meth:`ReducedHessian.operator`); the right-hand side's norm is then
     ``sqrt(rhs^T x0 + r0^T P r0)`` (``r0 = rhs - H x0``), the balancing preconditioner's
-    ``rhs^T P rhs`` that the same CG started from zero measures.
+    ``rhs^T P rhs`` that the same CG started from zero measures (where that sum is not positive,
+    the coarse space holding negative curvature, ``sqrt(r0^T P r0)``).
 
     ``flexible`` takes Notay's flexible CG (*SIAM J. Sci. Comput.* 22, 2000): the direction's
     coefficient ``z_k^T (r_k - r_k-1) / z_k-1^T r_k-1`` (Polak-Ribiere) instead of
@@ -850,6 +851,13 @@ def pcg(apply_H, apply_P, rhs, rtol, max_iter, start=None, flexible=False, leave
     norm2 = rz if start is None else rz + _dot(rhs, x)
     if not rz > 0:
         return x, 0
+    if not norm2 > 0:
+        # the coarse solution climbs (rhs^T x0 < -r0^T P r0): the coarse space holds negative curvature
+        # (a recycled direction across a saddle), and the balancing norm is no norm; CG measures from
+        # its own start's residual instead (the square root of the negative one was a tolerance of
+        # nan, and CG ran on to negative curvature or max_iter with no stopping test)
+        log.debug("CG: the coarse start climbs (rhs.x0 = %.3e, r0.P r0 = %.3e)", float(norm2 - rz), float(rz))
+        norm2 = rz
     if callable(rtol):
         rtol = rtol(float(np.sqrt(norm2)))
     stop = rtol * float(np.sqrt(norm2))
