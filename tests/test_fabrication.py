@@ -219,6 +219,8 @@ def test_fold_width_from_fold_angle_by_eq2_and_units(tmp_path):
     ({"edges_gdfe:width": [None] * 6 + [0.05]}, r"edges_vertices\[6\]: a hinge 0.05 mm wide covers no pixel"),
     ({"frame_unit": None}, "frame_unit is 'unit' .*give the scale"),
     ({"frame_unit": "furlong"}, "frame_unit: expected one of unit, mm"),
+    ({"frame_unit": ["mm"]}, r"frame_unit: expected one of unit, mm.*got \['mm'\]"),
+    ({"frame_unit": 2}, "frame_unit: expected one of unit, mm.*got 2"),
     ({"faces_vertices": [[0, 1]]}, r"faces_vertices\[0\]: expected at least 3 vertex indices"),
     ({"edges_gdfe:coated": [None] * 6 + ["left"]}, r"edges_gdfe:coated\[6\]: expected 'top', 'bottom' or null"),
 ])

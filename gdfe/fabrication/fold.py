@@ -125,6 +125,7 @@ class FoldMasks:
 
 
 def _list(doc, key, name, n=None, required=True):
+    """The list under ``key`` (``n`` entries, one per edge, if given); None if optional and absent."""
     v = doc.get(key)
     if v is None:
         if required:
@@ -138,6 +139,7 @@ def _list(doc, key, name, n=None, required=True):
 
 
 def _number(v, where):
+    """``v`` as a float, refused unless a finite number."""
     if not is_finite_number(v):
         raise GdfeError(f"{where}: expected a finite number, got {v!r}")
     return float(v)
@@ -162,29 +164,58 @@ def read_fold(path, scale=None, scale_name="scale"):
     """
     path = check_file("fold", path, suffixes=(".fold",), what="FOLD file")
     name = path.name
+    doc = _json_object(path)
+    mm = _mm_per_unit(doc, name, scale, scale_name)
+    V = _vertices(doc, name)
+    E = _edges(doc, name, V)
+    assignment = _assignments(doc, name, len(E))
+    angle = _fold_angles(doc, name, assignment)
+    width = _widths(doc, name, len(E), mm)
+    coated = _coated(doc, name, assignment)
+    faces = _faces(doc, name, len(V))
+    keys = _gdfe_keys(doc, name)
+    return CreasePattern(name=name, vertices=V * mm, edges=E, assignment=assignment, fold_angle=angle, width=width,
+                         coated=coated, faces=faces, keys=keys)
+
+
+def _json_object(path):
+    """The FOLD file's top-level JSON object (a parse error named by its line and column)."""
+    name = path.name
     try:
         doc = json.loads(read_text(path, "FOLD (JSON) file"))
     except json.JSONDecodeError as exc:
         raise GdfeError(f"{name}: not valid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}") from None
     if not isinstance(doc, dict):
         raise GdfeError(f"{name}: expected a JSON object at the top, got {type(doc).__name__}")
+    return doc
+
+
+def _mm_per_unit(doc, name, scale, scale_name):
+    """Millimetres per length unit of the file's frame (``frame_unit``, or the scale of a unit-less file)."""
     unit = doc.get("frame_unit", "unit")
+    if not isinstance(unit, str):  # a list or an object cannot name a unit (it was an unhashable-type TypeError)
+        raise GdfeError(f"{name}: frame_unit: expected one of unit, {', '.join(UNITS_MM)}, got {unit!r}")
     if unit in UNITS_MM:
-        mm = UNITS_MM[unit]
         if scale is not None:
             log.info("%s: frame_unit %s: scale ignored", name, unit)
-    elif unit == "unit":
-        s = scale if scale is not None else doc.get("gdfe:scale")
-        if s is None:
-            how = "the file's 'gdfe:scale' key" + (f", or {scale_name}" if scale_name else "")
-            raise GdfeError(f"{name}: frame_unit is 'unit' (no length unit): give the scale in mm per unit "
-                            f"({how}), or a frame_unit of {', '.join(UNITS_MM)}")
-        mm = _number(s, f"{name}: gdfe:scale") if scale is None else float(check_positive(scale_name or "scale",
-                                                                                          scale))
-        if mm <= 0:
-            raise GdfeError(f"{name}: gdfe:scale: expected a positive number of mm per unit, got {mm:g}")
-    else:
+        return UNITS_MM[unit]
+    if unit != "unit":
         raise GdfeError(f"{name}: frame_unit: expected one of unit, {', '.join(UNITS_MM)}, got {unit!r}")
+    if scale is not None:
+        return float(check_positive(scale_name or "scale", scale))
+    s = doc.get("gdfe:scale")
+    if s is None:
+        how = "the file's 'gdfe:scale' key" + (f", or {scale_name}" if scale_name else "")
+        raise GdfeError(f"{name}: frame_unit is 'unit' (no length unit): give the scale in mm per unit "
+                        f"({how}), or a frame_unit of {', '.join(UNITS_MM)}")
+    mm = _number(s, f"{name}: gdfe:scale")
+    if mm <= 0:
+        raise GdfeError(f"{name}: gdfe:scale: expected a positive number of mm per unit, got {mm:g}")
+    return mm
+
+
+def _vertices(doc, name):
+    """The (v, 2) vertex positions [frame units] of ``vertices_coords``, which must lie in z = 0."""
     vc = _list(doc, "vertices_coords", name)
     V = np.zeros((len(vc), 2))
     for k, c in enumerate(vc):
@@ -195,6 +226,11 @@ def read_fold(path, scale=None, scale_name="scale"):
         if len(xyz) == 3 and abs(xyz[2]) > 1e-9 * max(1.0, abs(xyz[0]), abs(xyz[1])):
             raise GdfeError(f"{where}: expected a flat crease pattern (z = 0), got z = {xyz[2]:g}")
         V[k] = xyz[:2]
+    return V
+
+
+def _edges(doc, name, V):
+    """The (e, 2) vertex indices of ``edges_vertices``: two different vertices of ``V``, at different points."""
     ev = _list(doc, "edges_vertices", name)
     E = np.zeros((len(ev), 2), int)
     for k, e in enumerate(ev):
@@ -208,7 +244,11 @@ def read_fold(path, scale=None, scale_name="scale"):
         if np.array_equal(V[e[0]], V[e[1]]):
             raise GdfeError(f"{name}: edges_vertices[{k}]: an edge of zero length (vertices {e[0]} and {e[1]} are "
                             f"both at {describe(V[e[0]].tolist())}); expected two vertices at different points")
-    ne = len(E)
+    return E
+
+
+def _assignments(doc, name, ne):
+    """The (e,) ``edges_assignment`` letters (all ``U`` when absent); cuts and joins refused."""
     ea = _list(doc, "edges_assignment", name, ne, required=False) or ["U"] * ne
     for k, a in enumerate(ea):
         if a in ("C", "J"):
@@ -216,43 +256,66 @@ def read_fold(path, scale=None, scale_name="scale"):
                             f"supported; expected one of {', '.join(ASSIGNMENTS)}")
         if a not in ASSIGNMENTS:
             raise GdfeError(f"{name}: edges_assignment[{k}]: expected one of {', '.join(ASSIGNMENTS)}, got {a!r}")
-    fa = _list(doc, "edges_foldAngle", name, ne, required=False)
-    angle = np.full(ne, np.nan)
-    if fa is not None:
-        for k, a in enumerate(fa):
-            if a is not None:
-                angle[k] = math.radians(_number(a, f"{name}: edges_foldAngle[{k}]"))
-                if ea[k] == "M" and angle[k] > 0 or ea[k] == "V" and angle[k] < 0:
-                    raise GdfeError(f"{name}: edges_foldAngle[{k}]: a {'mountain' if ea[k] == 'M' else 'valley'} "
-                                    f"fold needs a {'negative' if ea[k] == 'M' else 'positive'} angle, got {a!r}")
+    return np.array(ea, dtype="<U1")
+
+
+def _fold_angles(doc, name, assignment):
+    """The (e,) ``edges_foldAngle`` [rad] (NaN where not given), of the sign the mountain or valley needs."""
+    fa = _list(doc, "edges_foldAngle", name, len(assignment), required=False)
+    angle = np.full(len(assignment), np.nan)
+    for k, a in enumerate(fa or []):
+        if a is not None:
+            angle[k] = math.radians(_number(a, f"{name}: edges_foldAngle[{k}]"))
+            mv = assignment[k]
+            if mv == "M" and angle[k] > 0 or mv == "V" and angle[k] < 0:
+                raise GdfeError(f"{name}: edges_foldAngle[{k}]: a {'mountain' if mv == 'M' else 'valley'} "
+                                f"fold needs a {'negative' if mv == 'M' else 'positive'} angle, got {a!r}")
+    return angle
+
+
+def _widths(doc, name, ne, mm):
+    """The (e,) hinge widths [mm] of ``edges_gdfe:width`` (NaN where not given)."""
     ew = _list(doc, "edges_gdfe:width", name, ne, required=False)
     width = np.full(ne, np.nan)
-    if ew is not None:
-        for k, w in enumerate(ew):
-            if w is not None:
-                width[k] = _number(w, f"{name}: edges_gdfe:width[{k}]") * mm
-                if width[k] <= 0:
-                    raise GdfeError(f"{name}: edges_gdfe:width[{k}]: expected a positive width, got {w!r}")
-    ec = _list(doc, "edges_gdfe:coated", name, ne, required=False)
-    coated = np.full(ne, None, dtype=object)
-    for k, a in enumerate(ea):
-        coated[k] = {"V": "bottom", "M": "top"}.get(a)
-    if ec is not None:
-        for k, c in enumerate(ec):
-            if c is not None:
-                if c not in ("top", "bottom"):
-                    raise GdfeError(f"{name}: edges_gdfe:coated[{k}]: expected 'top', 'bottom' or null, got {c!r}")
-                coated[k] = c
+    for k, w in enumerate(ew or []):
+        if w is not None:
+            width[k] = _number(w, f"{name}: edges_gdfe:width[{k}]") * mm
+            if width[k] <= 0:
+                raise GdfeError(f"{name}: edges_gdfe:width[{k}]: expected a positive width, got {w!r}")
+    return width
+
+
+def _coated(doc, name, assignment):
+    """The (e,) coated face of each edge: ``edges_gdfe:coated``, else the one its fold leaves coated."""
+    ec = _list(doc, "edges_gdfe:coated", name, len(assignment), required=False)
+    coated = np.full(len(assignment), None, dtype=object)
+    coated[assignment == "V"] = "bottom"  # a valley folds towards +z: its top face is the free one
+    coated[assignment == "M"] = "top"
+    for k, c in enumerate(ec or []):
+        if c is not None:
+            if c not in ("top", "bottom"):
+                raise GdfeError(f"{name}: edges_gdfe:coated[{k}]: expected 'top', 'bottom' or null, got {c!r}")
+            coated[k] = c
+    return coated
+
+
+def _faces(doc, name, nv):
+    """The ``faces_vertices``, each a (k,) int array of at least 3 of the ``nv`` vertices; None when absent."""
     fv = _list(doc, "faces_vertices", name, required=False)
-    faces = None
-    if fv is not None:
-        faces = []
-        for k, f in enumerate(fv):
-            if (not isinstance(f, list) or len(f) < 3
-                    or not all(isinstance(i, int) and not isinstance(i, bool) and 0 <= i < len(V) for i in f)):
-                raise GdfeError(f"{name}: faces_vertices[{k}]: expected at least 3 vertex indices in "
-                                f"0..{len(V) - 1}, got {f!r}")
-            faces.append(np.array(f, int))
+    if fv is None:
+        return None
+    faces = []
+    for k, f in enumerate(fv):
+        if (not isinstance(f, list) or len(f) < 3
+                or not all(isinstance(i, int) and not isinstance(i, bool) and 0 <= i < nv for i in f)):
+            raise GdfeError(f"{name}: faces_vertices[{k}]: expected at least 3 vertex indices in "
+                            f"0..{nv - 1}, got {f!r}")
+        faces.append(np.array(f, int))
+    return faces
+
+
+def _gdfe_keys(doc, name):
+    """The file's ``gdfe:hinge_width`` and ``gdfe:pixel`` [mm] that it gives, each positive."""
     keys = {}
     for key in ("gdfe:hinge_width", "gdfe:pixel"):
         if key in doc:
@@ -260,8 +323,7 @@ def read_fold(path, scale=None, scale_name="scale"):
             if v <= 0:
                 raise GdfeError(f"{name}: {key}: expected a positive length in mm, got {v:g}")
             keys[key] = v
-    return CreasePattern(name=name, vertices=V * mm, edges=E, assignment=np.array(ea, dtype="<U1"),
-                         fold_angle=angle, width=width, coated=coated, faces=faces, keys=keys)
+    return keys
 
 
 def _boundary_loops(cp):
