@@ -41,6 +41,7 @@ Lengths in mm.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import logging
 import math
@@ -474,6 +475,282 @@ def _distance(result, film, surf, designed):
     return surface_distance(mid.points(result.points), mid.triangles, surf, designed=designed)
 
 
+@dataclasses.dataclass(frozen=True)
+class _Options:
+    """The checked choices of a design and the lengths derived from them (:attr:`SurfaceDesign.options`).
+
+    Attributes
+    ----------
+    pixel, w_min, d, h : float [mm]
+    block : int
+        Pixels per side of a ``w_min`` block.
+    iterations : int
+    projection : str
+    radius : float [mm]
+        Radius of the density filter.
+    size : float [mm]
+        The target film's larger side.
+    tolerance_mm : float
+    """
+
+    pixel: float
+    w_min: float
+    block: int
+    d: float
+    h: float
+    iterations: int
+    projection: str
+    radius: float
+    size: float
+    tolerance_mm: float
+
+    def as_dict(self):
+        """The choices for :attr:`SurfaceDesign.options`."""
+        return {"pixel_mm": self.pixel, "w_min_mm": self.w_min, "block_pixels": self.block, "d_mm": self.d,
+                "h_mm": self.h, "iterations": self.iterations, "projection": self.projection,
+                "filter_radius_mm": self.radius,
+                "objective": "mean squared distance of the mid-surface points from their target points after "
+                             "rigid alignment, units of h^2"}
+
+
+def _check_options(target, pixel, w_min, d, h, iterations, projection, filter_radius, tolerance_mm):
+    """The :class:`_Options` of :func:`design_surface`'s arguments, each checked where it enters."""
+    import gdfe
+
+    check_instance("target", target, Target)
+    pixel = check_positive("pixel", pixel)
+    w_min = pixel if w_min is None else check_positive("w_min", w_min)
+    if w_min < pixel * (1 - 1e-9):
+        raise GdfeError(f"w_min: expected at least one pixel ({pixel:g} mm), got {w_min:g}")
+    iterations = check_int("iterations", iterations, minimum=0)
+    projection = check_choice("projection", projection, PROJECTIONS)
+    h = gdfe.paper.H if h is None else check_positive("h", h)
+    b = block_size(w_min, pixel)
+    radius = 2.0 * b * pixel if filter_radius is None else check_number("filter_radius", filter_radius, minimum=0.0)
+    size = float(np.max(target.film_size))
+    tol_mm = TOLERANCE_FRACTION * size if tolerance_mm is None else check_positive("tolerance_mm", tolerance_mm)
+    return _Options(pixel=pixel, w_min=w_min, block=b, d=d, h=h, iterations=iterations, projection=projection,
+                    radius=radius, size=size, tolerance_mm=tol_mm)
+
+
+def _whole_pixel_film(target, pixel, h, d, model):
+    """The :class:`Film` of the target's film size rounded to whole pixels, cut to its outline."""
+    nx, ny = (int(round(float(v) / pixel)) for v in target.film_size)
+    if min(nx, ny) < 2:
+        raise GdfeError(f"pixel: expected at most half the film's smaller side ({float(min(target.film_size)):g} mm), "
+                        f"got {pixel:g} mm")
+    est = estimate_run(nx * ny)
+    if not est.fits:
+        raise GdfeError(f"pixel: expected a film that fits in memory, got {nx} x {ny} pixels ({est.text()}); "
+                        "use a larger pixel or a smaller film")
+    mask = None
+    if target.film_mask is not None:
+        x = (np.arange(nx) + 0.5) * pixel - 0.5 * nx * pixel
+        y = (np.arange(ny) + 0.5) * pixel - 0.5 * ny * pixel
+        X, Y = np.meshgrid(x, y, indexing="ij")
+        mask = np.asarray(target.film_mask(np.column_stack([X.ravel(), Y.ravel()])), bool).reshape(nx, ny)
+    return Film((nx, ny), pixel, h, d, model=model, mask=mask)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Placement:
+    """Step 1 on the film: the scale, the reachability, the target's patch and, out of reach, the closest answer.
+
+    Attributes
+    ----------
+    sigma : float
+    reachability : Reachability
+    surface : TriangleSurface
+        The target's patch the distances are measured to.
+    closest : dict or None
+        :attr:`SurfaceDesign.closest`.
+    """
+
+    sigma: float
+    reachability: Reachability
+    surface: object
+    closest: dict | None
+
+
+def _place(target, film, sigma, opts):
+    """Step 1: the :class:`_Placement` of ``target`` on ``film`` (``sigma`` forced, or None)."""
+    sigma, reach = scale_for(target, film, sigma)
+    rect = np.array(film.shape, float) * opts.pixel
+    surf = patch(target, sigma, rect, min(opts.pixel, opts.size / 100.0), target.film_mask)
+    return _Placement(sigma=sigma, reachability=reach, surface=surf, closest=_closest_answer(target, film, reach, surf))
+
+
+def _closest_answer(target, film, reach, surf):
+    """What is within reach where the target is not (:attr:`SurfaceDesign.closest`); None where it is, or nothing is."""
+    if reach.reachable:
+        return None
+    if target.family is not None:
+        return _closest_of_its_kind(target, film, surf)
+    if target.sigma is not None:
+        return _film_sizes_within_reach(target, film)
+    return None
+
+
+def _closest_of_its_kind(target, film, surf):
+    """The closest target of the same kind within reach and its distance from ``target``'s patch ``surf``, or None."""
+    t, near = closest_reachable(target, film)
+    if near is None:
+        return None
+    gap = _target_gap(near, film, surf)
+    return {"t": t, "params": near.params, "distance": gap.as_dict(),
+            "text": (f"a {near.kind} with " + ", ".join(f"{k} {v:.4g}" for k, v in near.params.items())
+                     + f" (curvature x {t:.3g}), {gap.rms_mm:.3g} mm RMS ({gap.max_mm:.3g} mm max) "
+                       "from the target")}
+
+
+def _film_sizes_within_reach(target, film):
+    """For a target of fixed size (a mesh): the film sizes that bring it within reach (:func:`reachable_sizes`)."""
+    sizes = reachable_sizes(target, film)
+    text = (f"this {target.kind} on a film of {sizes['size_mm']:.3g} mm (films of {sizes['sizes_mm'][0]:.3g} to "
+            f"{sizes['sizes_mm'][1]:.3g} mm are within reach)" if sizes["sizes_mm"] is not None else
+            f"none: no film size brings this {target.kind} within reach (best margin {sizes['margin']:.3f} at "
+            f"{sizes['size_mm']:.3g} mm)")
+    return {**sizes, "text": text}
+
+
+@dataclasses.dataclass
+class _Optimisation:
+    """Step 2's objective and gradient in the design variables, and what carries from one evaluation to the next.
+
+    The design variables ``x`` ``(m, 2)`` (top, bottom) are the coating fractions before the
+    density filter ``F``. L-BFGS-B calls :meth:`evaluate`; each fold starts from the last
+    converged one (:attr:`V`), or from the flat print once :attr:`flat` is set.
+
+    Attributes
+    ----------
+    film : Film
+    objective : Objective
+    F : (m, m) sparse matrix
+        The density filter.
+    h : float [mm]
+        The film thickness ``J`` is measured in.
+    started : float
+        ``time.perf_counter()`` at the start of step 2, for the records' ``seconds``.
+    callback : callable or None
+        ``callback(record)`` after every evaluation.
+    V : (n, 3) float array [mm]
+        The last converged fold, where the next one starts.
+    best : (float, (m, 2) float array)
+        ``J`` and ``x`` of the best converged evaluation so far.
+    flat : bool
+        Whether every evaluation folds from the flat print.
+    n, bad : int
+        Evaluations, and those whose fold did not converge.
+    history : list of dict
+        :attr:`SurfaceDesign.history`.
+    """
+
+    film: Film
+    objective: Objective
+    F: object
+    h: float
+    started: float
+    callback: object
+    V: np.ndarray
+    best: tuple
+    flat: bool = False
+    n: int = 0
+    bad: int = 0
+    history: list = dataclasses.field(default_factory=list)
+
+    def fractions(self, x):
+        """The filtered coating fractions ``rho`` ``(m, 2)`` of the design variables ``x``."""
+        return np.column_stack([self.F @ x[:, 0], self.F @ x[:, 1]])
+
+    def evaluate(self, xflat):
+        """``J`` and its gradient by the flattened design variables, through the fold's adjoint; recorded."""
+        film = self.film
+        x = xflat.reshape(-1, 2)
+        f = fold(film.relaxed(self.fractions(x)), start=None if self.flat else self.V, tol=FOLD_TOL)
+        self.n += 1
+        if not f.converged:
+            self.bad += 1
+        else:
+            self.V = f.points
+        J, dJdV = self.objective(f.points)
+        grad_c, _ = contraction_gradient(f, dJdV)
+        grad_x = -film.c0 * np.column_stack([self.F.T @ grad_c[:, 0], self.F.T @ grad_c[:, 1]])
+        if J < self.best[0] and f.converged:
+            self.best = (J, x.copy())
+        rec = {"evaluation": self.n, "J": J, "rms_mm": self.h * math.sqrt(J), "fold_iterations": f.iterations,
+               "converged": f.converged, "seconds": time.perf_counter() - self.started,
+               "folds_from": "flat print" if self.flat else "last fold"}
+        self.history.append(rec)
+        if self.callback is not None:
+            self.callback(rec)
+        return J, grad_x.ravel()
+
+    def phase(self, x_start, iterations):
+        """One L-BFGS-B run from ``x_start``: its iterations and stopping message."""
+        from scipy.optimize import minimize
+
+        res = minimize(self.evaluate, x_start.ravel(), jac=True, method="L-BFGS-B", bounds=[(0.0, 1.0)] * x_start.size,
+                       options={"maxiter": iterations, "ftol": 1e-12, "gtol": 1e-10, "maxcor": 20})
+        return int(res.nit), str(res.message)
+
+    def flat_print_objective(self, x):
+        """``J`` of the design ``x`` folded from the flat print, as in the oven (inf where the fold fails)."""
+        f = fold(self.film.relaxed(self.fractions(x)), tol=FOLD_TOL)
+        return self.objective(f.points)[0] if f.converged else np.inf
+
+
+#: The solver's loggers whose warnings the optimisation holds back.
+_SOLVER_LOGGERS = ("gdfe.solver", "gdfe.solver.newton", "gdfe.solver.simulation")
+
+
+@contextlib.contextmanager
+def _solver_warnings_held_back():
+    """Holds back and counts (the :class:`_Quiet` it yields) the solver's warnings for the ``with`` block."""
+    quiet = _Quiet()
+    loggers = [logging.getLogger(name) for name in _SOLVER_LOGGERS]
+    for logger in loggers:
+        logger.addFilter(quiet)
+    try:
+        yield quiet
+    finally:
+        for logger in loggers:
+            logger.removeFilter(quiet)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Phases:
+    """What step 2's optimisation reports: L-BFGS-B ``iterations`` and ``message``, and the ``branch`` check."""
+
+    iterations: int
+    message: str
+    branch: dict | None
+
+
+def _optimise(opt, x0, iterations, tolerance_mm):
+    """Step 2: L-BFGS-B from ``x0`` on continued folds, then from the flat print where it folds onto another branch."""
+    opt.evaluate(x0.ravel())
+    if iterations == 0:
+        return _Phases(iterations=0, message="no optimisation (iterations=0)", branch=None)
+    nit, message = opt.phase(x0, iterations)
+    # the oven folds the print from flat: is that the branch the folds continued on?
+    J_cont, x_cont = opt.best
+    J_flat = opt.flat_print_objective(x_cont)
+    rms_cont, rms_flat = opt.h * math.sqrt(J_cont), opt.h * math.sqrt(J_flat)
+    switch = rms_flat > BRANCH_RATIO * rms_cont and rms_flat > BRANCH_FLOOR * tolerance_mm
+    branch = {"continued_rms_mm": rms_cont, "flat_print_rms_mm": rms_flat, "second_phase": bool(switch)}
+    if switch:
+        log.info("inverse2d: from the flat print the design folds %.3g mm RMS from the target against %.3g "
+                 "mm on the folds continued from the target's shape: a second optimisation, every fold "
+                 "from the flat print", rms_flat, rms_cont)
+        opt.flat = True
+        opt.best = (J_flat, x_cont)
+        nit2, message2 = opt.phase(x_cont, iterations)
+        nit += nit2
+        message = f"{message}; folds from the flat print: {message2}"
+        branch["flat_print_best_rms_mm"] = opt.h * math.sqrt(opt.best[0])
+    return _Phases(iterations=nit, message=message, branch=branch)
+
+
 def design_surface(target, *, pixel=0.125, w_min=None, d=FIG6_D, h=None, model=None, iterations=DEFAULT_ITERATIONS,
                    projection="halftone", filter_radius=None, sigma=None, tolerance_mm=None, callback=None):
     """Design the coating of both faces of a film so that its GDFE fold matches ``target``.
@@ -513,158 +790,51 @@ def design_surface(target, *, pixel=0.125, w_min=None, d=FIG6_D, h=None, model=N
     SurfaceDesign
     """
     import gdfe
-    from scipy.optimize import minimize
 
-    check_instance("target", target, Target)
-    pixel = check_positive("pixel", pixel)
-    w_min = pixel if w_min is None else check_positive("w_min", w_min)
-    if w_min < pixel * (1 - 1e-9):
-        raise GdfeError(f"w_min: expected at least one pixel ({pixel:g} mm), got {w_min:g}")
-    iterations = check_int("iterations", iterations, minimum=0)
-    projection = check_choice("projection", projection, PROJECTIONS)
-    h = gdfe.paper.H if h is None else check_positive("h", h)
-    b = block_size(w_min, pixel)
-    radius = 2.0 * b * pixel if filter_radius is None else check_number("filter_radius", filter_radius, minimum=0.0)
-    size = float(np.max(target.film_size))
-    tol_mm = TOLERANCE_FRACTION * size if tolerance_mm is None else check_positive("tolerance_mm", tolerance_mm)
+    opts = _check_options(target, pixel, w_min, d, h, iterations, projection, filter_radius, tolerance_mm)
     seconds = {}
     t0 = time.perf_counter()
-
-    # the film is whole pixels: its sides are the target's rounded to the pixel
-    nx, ny = (int(round(float(v) / pixel)) for v in target.film_size)
-    if min(nx, ny) < 2:
-        raise GdfeError(f"pixel: expected at most half the film's smaller side ({float(min(target.film_size)):g} mm), "
-                        f"got {pixel:g} mm")
-    rect = np.array([nx, ny], float) * pixel
-    est = estimate_run(nx * ny)
-    if not est.fits:
-        raise GdfeError(f"pixel: expected a film that fits in memory, got {nx} x {ny} pixels ({est.text()}); "
-                        "use a larger pixel or a smaller film")
-    mask = None
-    if target.film_mask is not None:
-        x = (np.arange(nx) + 0.5) * pixel - 0.5 * nx * pixel
-        y = (np.arange(ny) + 0.5) * pixel - 0.5 * ny * pixel
-        X, Y = np.meshgrid(x, y, indexing="ij")
-        mask = np.asarray(target.film_mask(np.column_stack([X.ravel(), Y.ravel()])), bool).reshape(nx, ny)
-    film = Film((nx, ny), pixel, h, d, model=model, mask=mask)
-    sigma, reach = scale_for(target, film, sigma)
-    surf = patch(target, sigma, rect, min(pixel, size / 100.0), target.film_mask)
-    closest = None
-    if not reach.reachable and target.family is not None:
-        t, near = closest_reachable(target, film)
-        if near is not None:
-            gap = _target_gap(near, film, surf)
-            closest = {"t": t, "params": near.params, "distance": gap.as_dict(),
-                       "text": (f"a {near.kind} with " + ", ".join(f"{k} {v:.4g}" for k, v in near.params.items())
-                                + f" (curvature x {t:.3g}), {gap.rms_mm:.3g} mm RMS ({gap.max_mm:.3g} mm max) "
-                                  "from the target")}
-    elif not reach.reachable and target.sigma is not None:
-        sizes = reachable_sizes(target, film)
-        text = (f"this {target.kind} on a film of {sizes['size_mm']:.3g} mm (films of {sizes['sizes_mm'][0]:.3g} to "
-                f"{sizes['sizes_mm'][1]:.3g} mm are within reach)" if sizes["sizes_mm"] is not None else
-                f"none: no film size brings this {target.kind} within reach (best margin {sizes['margin']:.3f} at "
-                f"{sizes['size_mm']:.3g} mm)")
-        closest = {**sizes, "text": text}
+    film = _whole_pixel_film(target, opts.pixel, opts.h, d, model)
+    place = _place(target, film, sigma, opts)
+    surf = place.surface
     seconds["placement"] = time.perf_counter() - t0
-    log.info("inverse2d: %s on %d x %d pixels (%d cells); %s", target.name, nx, ny, film.n_cells, reach.text())
+    log.info("inverse2d: %s on %d x %d pixels (%d cells); %s", target.name, film.shape[0], film.shape[1],
+             film.n_cells, place.reachability.text())
 
     t1 = time.perf_counter()
-    T = target.point(film.mid.flat, sigma)
+    T = target.point(film.mid.flat, place.sigma)
     objective = Objective(film, T)
-    F = density_filter(film.cell_centres, radius)
-    x0 = initial_coating(target, film, sigma)
+    F = density_filter(film.cell_centres, opts.radius)
     # step 1's estimate is smooth: the filter leaves it almost as it is
-    state = {"V": target_start(target, film, sigma), "best": (np.inf, x0), "n": 0, "bad": 0, "flat": False}
-    history = []
-
-    def rho_of(x):
-        return np.column_stack([F @ x[:, 0], F @ x[:, 1]])
-
-    def fun(xflat):
-        x = xflat.reshape(-1, 2)
-        f = fold(film.relaxed(rho_of(x)), start=None if state["flat"] else state["V"], tol=FOLD_TOL)
-        state["n"] += 1
-        if not f.converged:
-            state["bad"] += 1
-        else:
-            state["V"] = f.points
-        J, dJdV = objective(f.points)
-        grad_c, _ = contraction_gradient(f, dJdV)
-        grad_x = -film.c0 * np.column_stack([F.T @ grad_c[:, 0], F.T @ grad_c[:, 1]])
-        if J < state["best"][0] and f.converged:
-            state["best"] = (J, x.copy())
-        rec = {"evaluation": state["n"], "J": J, "rms_mm": h * math.sqrt(J), "fold_iterations": f.iterations,
-               "converged": f.converged, "seconds": time.perf_counter() - t1,
-               "folds_from": "flat print" if state["flat"] else "last fold"}
-        history.append(rec)
-        if callback is not None:
-            callback(rec)
-        return J, grad_x.ravel()
-
-    quiet = _Quiet()
-    solver_log = logging.getLogger("gdfe.solver")
-    solver_log.addFilter(quiet)
-    for name in ("gdfe.solver.newton", "gdfe.solver.simulation"):
-        logging.getLogger(name).addFilter(quiet)
-    def optimise(x_start):
-        res = minimize(fun, x_start.ravel(), jac=True, method="L-BFGS-B", bounds=[(0.0, 1.0)] * x0.size,
-                       options={"maxiter": iterations, "ftol": 1e-12, "gtol": 1e-10, "maxcor": 20})
-        return int(res.nit), str(res.message)
-
-    branch = None
-    try:
-        fun(x0.ravel())
-        nit, message = 0, "no optimisation (iterations=0)"
-        if iterations > 0:
-            nit, message = optimise(x0)
-            # the oven folds the print from flat: is that the branch the folds continued on?
-            J_cont, x_cont = state["best"]
-            f = fold(film.relaxed(rho_of(x_cont)), tol=FOLD_TOL)
-            J_flat = objective(f.points)[0] if f.converged else np.inf
-            rms_cont, rms_flat = h * math.sqrt(J_cont), h * math.sqrt(J_flat)
-            switch = rms_flat > BRANCH_RATIO * rms_cont and rms_flat > BRANCH_FLOOR * tol_mm
-            branch = {"continued_rms_mm": rms_cont, "flat_print_rms_mm": rms_flat, "second_phase": bool(switch)}
-            if switch:
-                log.info("inverse2d: from the flat print the design folds %.3g mm RMS from the target against %.3g "
-                         "mm on the folds continued from the target's shape: a second optimisation, every fold "
-                         "from the flat print", rms_flat, rms_cont)
-                state["flat"] = True
-                state["best"] = (J_flat, x_cont)
-                nit2, message2 = optimise(x_cont)
-                nit += nit2
-                message = f"{message}; folds from the flat print: {message2}"
-                branch["flat_print_best_rms_mm"] = h * math.sqrt(state["best"][0])
-    finally:
-        solver_log.removeFilter(quiet)
-        for name in ("gdfe.solver.newton", "gdfe.solver.simulation"):
-            logging.getLogger(name).removeFilter(quiet)
-    J_best, x_best = state["best"]
-    rho = rho_of(x_best)
+    x0 = initial_coating(target, film, place.sigma)
+    opt = _Optimisation(film=film, objective=objective, F=F, h=opts.h, started=t1, callback=callback,
+                        V=target_start(target, film, place.sigma), best=(np.inf, x0))
+    with _solver_warnings_held_back() as quiet:
+        phases = _optimise(opt, x0, opts.iterations, opts.tolerance_mm)
+    J_best, x_best = opt.best
+    rho = opt.fractions(x_best)
     seconds["optimisation"] = time.perf_counter() - t1
 
     t2 = time.perf_counter()
     relaxed = gdfe.simulate(film.relaxed(rho))
     rd = _distance(relaxed, film, surf, T)
-    initial = gdfe.simulate(film.relaxed(rho_of(x0)))
+    initial = gdfe.simulate(film.relaxed(opt.fractions(x0)))
     idist = _distance(initial, film, surf, T)
     seconds["relaxed_check"] = time.perf_counter() - t2
 
     t3 = time.perf_counter()
-    top, bottom = project(film.grid(rho[:, 0]), film.grid(rho[:, 1]), b,
-                          present=film.mask if film.mask is not None else None, method=projection)
-    ok = all(min_feature_ok(m, b, film.mask) for m in (top, bottom))
+    top, bottom = project(film.grid(rho[:, 0]), film.grid(rho[:, 1]), opts.block, present=film.mask,
+                          method=opts.projection)
+    ok = all(min_feature_ok(m, opts.block, film.mask) for m in (top, bottom))
     printable = gdfe.simulate(film.printable(top, bottom))
     pd_ = _distance(printable, film, surf, T)
     seconds["printable_check"] = time.perf_counter() - t3
     seconds["total"] = time.perf_counter() - t0
-    options = {"pixel_mm": pixel, "w_min_mm": w_min, "block_pixels": b, "d_mm": d, "h_mm": h,
-               "iterations": iterations, "projection": projection, "filter_radius_mm": radius,
-               "objective": "mean squared distance of the mid-surface points from their target points after "
-                            "rigid alignment, units of h^2"}
-    return SurfaceDesign(target=target, film=film, sigma=sigma, reachability=reach, closest=closest, rho=rho,
-                         top=top, bottom=bottom, relaxed=relaxed, printable=printable, initial=initial,
-                         relaxed_distance=rd,
-                         printable_distance=pd_, initial_distance=idist, optimised_rms_mm=h * math.sqrt(J_best),
-                         history=history, iterations=nit, evaluations=state["n"], message=message, seconds=seconds,
-                         solver_warnings=quiet.count, unconverged_folds=state["bad"], masks_ok=ok,
-                         tolerance_mm=tol_mm, options=options, target_surface=surf, branch=branch)
+    return SurfaceDesign(target=target, film=film, sigma=place.sigma, reachability=place.reachability,
+                         closest=place.closest, rho=rho, top=top, bottom=bottom, relaxed=relaxed, printable=printable,
+                         initial=initial, relaxed_distance=rd, printable_distance=pd_, initial_distance=idist,
+                         optimised_rms_mm=opts.h * math.sqrt(J_best), history=opt.history,
+                         iterations=phases.iterations, evaluations=opt.n, message=phases.message, seconds=seconds,
+                         solver_warnings=quiet.count, unconverged_folds=opt.bad, masks_ok=ok,
+                         tolerance_mm=opts.tolerance_mm, options=opts.as_dict(), target_surface=surf,
+                         branch=phases.branch)
