@@ -413,58 +413,7 @@ class Diagnosis:
 
     def as_dict(self) -> dict:
         """The JSON layout of ``gdfe diagnose --json``: the verdict and the noise first."""
-        t = self.tests
-        logo = self.held_out == "logo"
-
-        def entry(f):
-            e = {"name": f.name, "effects": list(f.model.effects), "effect_kinds": self.effect_kinds(f),
-                 "params": f.param_dict(),
-                 "se": {k: _num(v) for k, v in f.se_dict().items()},
-                 "ci95": {k: [_num(a), _num(b)] for k, (a, b) in f.ci_dict().items()},
-                 "parameters": f.parameters(),
-                 "n_params": f.model.n_params, "rmse": f.rmse, "loo_rmse": f.loo_rmse, "cv": f.cv,
-                 "shrink": self.shrink(f, "loo"), "aic": f.aicc, "at_bound": f.at_bound,
-                 "identifiable": f.identifiable, "unidentified": f.unidentified,
-                 "condition": _num(f.condition), "equals": f.equals, "converged": f.success,
-                 "plausible": getattr(f, "plausible", True), "implausible": getattr(f, "implausible", [])}
-            if f.model.process:
-                e["process_column"] = f.model.process
-            if f.model.group:
-                e["group_column"] = f.model.group
-                e["group_labels"] = list(f.model.labels)
-            if f.model.process or f.model.group:
-                e["credit"] = self.credit(f)
-            if logo:
-                e.update(logo_rmse=f.logo_rmse,
-                         shrink_logo=self.shrink(f, "logo") if f.logo_rmse is not None else None)
-            return e
-
-        effects = []
-        for rank, f in enumerate(self.fits, start=1):
-            effects.append({**entry(f), "rank": rank})
-        # the chosen model first, the others by held-out error
-        effects.sort(key=lambda e: (e["name"] != self.best.name, e["rank"]))
-        b = self.baseline
-        base = {"model": BASELINE_MODEL if self.baseline_name == "eq1" else b.name, "form": self.baseline_name,
-                "description": DESCRIPTIONS[self.baseline_name],
-                "params": b.param_dict(), "se": {k: _num(v) for k, v in b.se_dict().items()},
-                "rmse": b.rmse, "loo_rmse": b.loo_rmse, "cv": b.cv, "aic": b.aicc,
-                "r2": _r2(t.alpha, b.predicted)}
-        if logo:
-            base["logo_rmse"] = b.logo_rmse
-        residuals = []
-        for i in range(len(t)):
-            row = {"row": i + 2, "L_mm": float(t.L[i]), "d_mm": float(t.d[i]), "h_mm": float(t.h[i]),
-                   "measured": float(t.alpha[i]), "predicted": float(b.predicted[i]),
-                   "residual": float(b.residuals[i]), "loo_residual": float(t.alpha[i] - b.loo_predicted[i]),
-                   "best_predicted": float(self.best.predicted[i]),
-                   "best_residual": float(self.best.residuals[i]),
-                   "best_loo_residual": float(t.alpha[i] - self.best.loo_predicted[i])}
-            if self.groups is not None:
-                row["group"] = str(self.groups[i])
-            for k, v in t.extra.items():
-                row.setdefault(k, str(v[i]))
-            residuals.append(row)
+        ranked_by = "leave-one-group-out" if self.held_out == "logo" else self.baseline.cv
         out = {
             "verdict": self.verdict.verdict,
             "verdict_text": self.verdict.text,
@@ -473,37 +422,24 @@ class Diagnosis:
                        "magnitudes, positive towards the uncoated face"),
             "confounded": self.confounded,
             "baseline_form": self.baseline_form,
-            "n_tests": len(t),
-            "held_out": "leave-one-group-out" if logo else b.cv,
-            "columns": self.columns.as_dict(),
-            "baseline": base,
+            "n_tests": len(self.tests),
+            "held_out": ranked_by,
+            "columns": self._columns_entry(),
+            "baseline": self._baseline_entry(),
             "lack_of_fit": self.lack_of_fit,
             "gap_removed": self.verdict.removed,
             "structure": {"baseline": self.structure, "best": self.structure_best, "strong_trends": self.trends},
             "where": self.where,
             "regime": self.regime,
-            "residuals": residuals,
-            "effects": effects,
+            "residuals": self._residual_rows(),
+            "effects": self._effect_entries(),
             "best": self.best.name,
             "named": [f.name for f in self.named] or [self.best.name],
             "attribution": self.attribution().as_dict(),
             "separation": self.separation,
             "selected": self.selected.name,
-            "best_detail": {**entry(self.best), "where": self.where_best, "regime": self.regime_best},
-            "selection": ("effects: the best first, then the others by rank, the order of their "
-                          + ("leave-one-group-out" if logo else b.cv)
-                          + " RMSE; best: climbing from the baseline, the best single effect is named if "
-                          f"its held-out mean squared error is lower by more than {STEP_SE[0]:g} standard "
-                          "error(s) of the paired per-test difference, the best pair if lower than that "
-                          f"by more than {STEP_SE[1]:g}; models whose parameters the data cannot identify or "
-                          "whose predictions equal a simpler model's are never chosen; a batch effect is then "
-                          "tried on the chosen model on leave-one-out error; with a known noise and the "
-                          "baseline within it, the best is the baseline; with a known noise and the chosen "
-                          "model rejected by the lack-of-fit test, a model within the noise takes its place "
-                          f"(no more effects and not beaten by {STEP_SE[0]:g} standard error(s), or more effects "
-                          f"and better by {STEP_SE[0]:g}); named: the models the best does not beat by "
-                          f"{STEP_SE[0]:g} standard error(s) with no more effects (and within the noise when "
-                          "the best is), fewest effects first"),
+            "best_detail": {**self._fit_entry(self.best), "where": self.where_best, "regime": self.regime_best},
+            "selection": _selection_rule(ranked_by),
             "verdict_rules": {"level": LEVEL, "meaningful": MEANINGFUL},
             "candidates": self.candidates,
             "excluded": self.excluded,
@@ -511,12 +447,82 @@ class Diagnosis:
             "catalogue": {e.name: e.as_dict() for e in EFFECTS.values()},
             "artefacts": None if self.artefacts is None else self.artefacts.as_dict(),
         }
-        out["columns"]["available_roles"] = {r: {"kind": k, "what": w} for r, (k, w) in ROLES.items()}
         if self.check is not None:
             out["gdfe_check"] = self.check
+        return self._reported(out)
+
+    def _columns_entry(self):
+        """The JSON of the columns, with every role a column could be declared."""
+        return {**self.columns.as_dict(),
+                "available_roles": {r: {"kind": k, "what": w} for r, (k, w) in ROLES.items()}}
+
+    def _baseline_entry(self):
+        """The JSON of the baseline: its form, parameters and errors."""
+        b = self.baseline
+        base = {"model": BASELINE_MODEL if self.baseline_name == "eq1" else b.name, "form": self.baseline_name,
+                "description": DESCRIPTIONS[self.baseline_name],
+                "params": b.param_dict(), "se": {k: _num(v) for k, v in b.se_dict().items()},
+                "rmse": b.rmse, "loo_rmse": b.loo_rmse, "cv": b.cv, "aic": b.aicc,
+                "r2": _r2(self.tests.alpha, b.predicted)}
+        if self.held_out == "logo":
+            base["logo_rmse"] = b.logo_rmse
+        return base
+
+    def _residual_rows(self):
+        """One JSON row per test: its inputs and columns, what the baseline and the best predict, and
+        their residuals, fitted and held out."""
+        t, b, best = self.tests, self.baseline, self.best
+        rows = []
+        for i in range(len(t)):
+            row = {"row": i + 2, "L_mm": float(t.L[i]), "d_mm": float(t.d[i]), "h_mm": float(t.h[i]),
+                   "measured": float(t.alpha[i]), "predicted": float(b.predicted[i]),
+                   "residual": float(b.residuals[i]), "loo_residual": float(t.alpha[i] - b.loo_predicted[i]),
+                   "best_predicted": float(best.predicted[i]),
+                   "best_residual": float(best.residuals[i]),
+                   "best_loo_residual": float(t.alpha[i] - best.loo_predicted[i])}
+            if self.groups is not None:
+                row["group"] = str(self.groups[i])
+            for k, v in t.extra.items():
+                row.setdefault(k, str(v[i]))
+            rows.append(row)
+        return rows
+
+    def _effect_entries(self):
+        """The JSON of every fitted model with its rank by held-out error, the chosen model first."""
+        effects = [{**self._fit_entry(f), "rank": rank} for rank, f in enumerate(self.fits, start=1)]
+        # the chosen model first, the others by held-out error
+        effects.sort(key=lambda e: (e["name"] != self.best.name, e["rank"]))
+        return effects
+
+    def _fit_entry(self, f):
+        """The JSON of one fitted model: its parameters, errors and identifiability, and its columns."""
+        e = {"name": f.name, "effects": list(f.model.effects), "effect_kinds": self.effect_kinds(f),
+             "params": f.param_dict(),
+             "se": {k: _num(v) for k, v in f.se_dict().items()},
+             "ci95": {k: [_num(a), _num(b)] for k, (a, b) in f.ci_dict().items()},
+             "parameters": f.parameters(),
+             "n_params": f.model.n_params, "rmse": f.rmse, "loo_rmse": f.loo_rmse, "cv": f.cv,
+             "shrink": self.shrink(f, "loo"), "aic": f.aicc, "at_bound": f.at_bound,
+             "identifiable": f.identifiable, "unidentified": f.unidentified,
+             "condition": _num(f.condition), "equals": f.equals, "converged": f.success,
+             "plausible": getattr(f, "plausible", True), "implausible": getattr(f, "implausible", [])}
+        if f.model.process:
+            e["process_column"] = f.model.process
+        if f.model.group:
+            e["group_column"] = f.model.group
+            e["group_labels"] = list(f.model.labels)
+        if f.model.process or f.model.group:
+            e["credit"] = self.credit(f)
+        if self.held_out == "logo":
+            e.update(logo_rmse=f.logo_rmse,
+                     shrink_logo=self.shrink(f, "logo") if f.logo_rmse is not None else None)
+        return e
+
+    def _reported(self, out):
+        """``out`` with the reported names of the fits (``factor[C]``), each model's entry saying the
+        name it was fitted as (e.g. for ``--effect``)."""
         out = _renamed(out, self.renames)
-        # what each reported name was fitted as (the names of the fits, e.g. for --effect)
-        names = {rename(f.name, self.renames): f.name for f in [b] + list(self.fits)}
+        names = {rename(f.name, self.renames): f.name for f in [self.baseline] + list(self.fits)}
         for e in out["effects"] + [out["best_detail"]]:
             e["fitted_as"] = names.get(e["name"], e["name"])
         return out
@@ -584,6 +590,25 @@ class Diagnosis:
         lines += [f"measurement: {w}" for w in ([] if self.artefacts is None else self.artefacts.sentences())]
         lines += [f"warning: {w}" for w in self.warnings]
         return rename("\n".join(lines), self.renames)
+
+
+def _selection_rule(ranked_by):
+    """How the effects are ordered and the best and the named models chosen, in words, with
+    ``ranked_by`` the held-out error that ranks them."""
+    return ("effects: the best first, then the others by rank, the order of their "
+            + ranked_by
+            + " RMSE; best: climbing from the baseline, the best single effect is named if "
+            f"its held-out mean squared error is lower by more than {STEP_SE[0]:g} standard "
+            "error(s) of the paired per-test difference, the best pair if lower than that "
+            f"by more than {STEP_SE[1]:g}; models whose parameters the data cannot identify or "
+            "whose predictions equal a simpler model's are never chosen; a batch effect is then "
+            "tried on the chosen model on leave-one-out error; with a known noise and the "
+            "baseline within it, the best is the baseline; with a known noise and the chosen "
+            "model rejected by the lack-of-fit test, a model within the noise takes its place "
+            f"(no more effects and not beaten by {STEP_SE[0]:g} standard error(s), or more effects "
+            f"and better by {STEP_SE[0]:g}); named: the models the best does not beat by "
+            f"{STEP_SE[0]:g} standard error(s) with no more effects (and within the noise when "
+            "the best is), fewest effects first")
 
 
 def _num(v):
@@ -711,6 +736,28 @@ def _read_tests(path):
 def _diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=None, models=None, roles=None,
              baseline="eq1", signed=False, screen=True, relative_sigma=None):
     """:func:`diagnose` without the attribution sentence (the screen's reruns call it)."""
+    tests = _checked_tests(tests, sigma=sigma, check=check, baseline=baseline, signed=signed)
+    data = _prepare(tests, group=group, sigma=sigma, process=process, roles=roles, relative_sigma=relative_sigma)
+    fitted = _fit_models(data, baseline=baseline, models=models, pairs=pairs)
+    res_base = _residuals_of(fitted.base, data)
+    choice = _choose(fitted, data, res_base)
+    diag = _conclude(data, fitted, choice, res_base, baseline=baseline, signed=signed)
+    if check:
+        diag.check = _gdfe_check(diag, check)
+        if not all(c["converged"] for c in diag.check.values()):
+            diag.warnings.append("a GDFE solve of the check did not converge: its difference to the closed "
+                                 "form is not a discretisation error")
+    if screen:  # measurement artefacts: failed specimens, outliers, noise growing with the angle
+        diag = screen_artefacts(diag, lambda t, relative_sigma=None, main=False: _diagnose(
+            t, group=group, sigma=sigma, process=process, pairs=pairs, check=check if main else None, models=models,
+            roles=roles, baseline=baseline, signed=signed, screen=False, relative_sigma=relative_sigma))
+    diag.verdict = dataclasses.replace(diag.verdict, text=rename(diag.verdict.text, diag.renames))
+    return diag
+
+
+def _checked_tests(tests, *, sigma, check, baseline, signed):
+    """The tests to diagnose (read when given a path), with the arguments checked and the angles
+    taken as magnitudes when ``signed``."""
     if not isinstance(tests, FoldingTests):
         tests = _read_tests(tests)
     n = len(tests)
@@ -725,42 +772,188 @@ def _diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=
         from gdfe.diagnosis.forward import CELLS
 
         check_choice("check", check, CELLS)
+    return tests
+
+
+@dataclasses.dataclass(frozen=True)
+class _Setup:
+    """The tests as every fit sees them: their columns, noise, weights and held-out error.
+
+    Attributes
+    ----------
+    tests : FoldingTests
+    columns : Columns
+    noise : Noise
+    weights : (n,) float array or None
+        Weights of the least squares (``1 / sigma^2`` of a noise that varies between tests), None
+        for equal ones.
+    groups : (n,) str array or None
+        Group label of each test in the leave-one-group-out column.
+    kind : str
+        ``"logo"`` with a leave-one-group-out column, else ``"loo"``.
+    inputs : dict of str -> (n,) float array
+        The numeric inputs the residuals are analysed against (``L_mm``, ``d_mm``, ``h_mm``,
+        the process columns).
+    small_negative : list of int
+        Rows (CSV numbering) of negative angles kept as the noise of small folds.
+    """
+
+    tests: FoldingTests
+    columns: Columns
+    noise: Noise
+    weights: np.ndarray | None
+    groups: np.ndarray | None
+    kind: str
+    inputs: dict
+    small_negative: list
+
+    def x_of(self, m):
+        """The values of the process column of model ``m`` (None without one)."""
+        return self.columns.process[m.process] if m.process else None
+
+    def group_of(self, m):
+        """The index of each test's group among the labels of model ``m`` (None without a group)."""
+        return m.group_index(self.columns.groups[m.group]) if m.group else None
+
+    def fit(self, m):
+        """Model ``m`` fitted to the tests and held out (:func:`gdfe.diagnosis.fit.evaluate`)."""
+        t = self.tests
+        return evaluate(m, t.L, t.d, t.h, t.alpha, self.groups, x=self.x_of(m), group=self.group_of(m),
+                        weights=self.weights)
+
+    def kind_of(self, f):
+        """The held-out error ``f`` is ranked by: ``"loo"`` where it has no LOGO error (a batch effect)."""
+        return "loo" if f.held_out_rmse(self.kind) is None else self.kind
+
+
+def _prepare(tests, *, group, sigma, process, roles, relative_sigma):
+    """The tests' columns and noise (steps 1 and 2 of the module docstring), with their signs checked
+    and the weights the noise gives."""
     cols = read_columns(tests, group=group, process=process, roles=roles)
-    L, d, h, alpha = tests.L, tests.d, tests.h, tests.alpha
-    keys = [L, d, h, *cols.process.values()]
-    keys += [np.unique(v, return_inverse=True)[1].ravel().astype(float) for v in cols.groups.values()]
-    noise = noise_of(alpha, sigma=sigma, sigma_column=cols.sigma, keys=np.column_stack(keys))
-    small_negative = _check_signs(alpha, noise)
+    noise = noise_of(tests.alpha, sigma=sigma, sigma_column=cols.sigma, keys=_replicate_keys(tests, cols))
+    small_negative = _check_signs(tests.alpha, noise)
     weights = None
     if noise.source == "sigma_rad column" and np.ptp(noise.sigma) > 0:
         weights = 1.0 / noise.sigma**2
     if relative_sigma is not None:  # the noise grows with the angle (gdfe.diagnosis.artefacts)
         noise, weights = with_relative_noise(noise, relative_sigma)
     groups = cols.groups.get(cols.logo)
-    kind = "logo" if groups is not None else "loo"
+    return _Setup(tests=tests, columns=cols, noise=noise, weights=weights, groups=groups,
+                  kind="logo" if groups is not None else "loo",
+                  inputs={"L_mm": tests.L, "d_mm": tests.d, "h_mm": tests.h, **cols.process},
+                  small_negative=small_negative)
 
-    def fit(m):
-        x = cols.process[m.process] if m.process else None
-        g = m.group_index(cols.groups[m.group]) if m.group else None
-        return evaluate(m, L, d, h, alpha, groups, x=x, group=g, weights=weights)
 
-    base = fit(baseline_model(baseline))
+def _replicate_keys(tests, cols):
+    """(n, k) float array whose equal rows are replicates: the design, the process columns and
+    the group columns (as codes)."""
+    keys = [tests.L, tests.d, tests.h, *cols.process.values()]
+    keys += [np.unique(v, return_inverse=True)[1].ravel().astype(float) for v in cols.groups.values()]
+    return np.column_stack(keys)
+
+
+@dataclasses.dataclass
+class _Fitted:
+    """The baseline and every model fitted to the tests, and the held-out choice among them.
+
+    Attributes
+    ----------
+    base : EffectFit
+    fits : list of EffectFit
+        The models besides the baseline (batch steps included), best held-out error first.
+    selected : EffectFit
+        The model the held-out errors choose, the batch step included.
+    candidates : list of str
+        Models within one standard error of the held-out choice's error, or below it
+        (:func:`gdfe.diagnosis.fit.select`).
+    """
+
+    base: EffectFit
+    fits: list
+    selected: EffectFit
+    candidates: list
+
+
+def _fit_models(data, *, baseline, models, pairs):
+    """Fit the baseline and every model, and choose by held-out error (steps 3 to 5 of the module
+    docstring)."""
+    alpha, n = data.tests.alpha, len(data.tests)
+    base = data.fit(baseline_model(baseline))
     if models is None:
-        models = catalogue(pairs, process=list(cols.process))
-    fits = [fit(m) for m in _fittable(models, baseline, n)]
+        models = catalogue(pairs, process=list(data.columns.process))
+    fits = [data.fit(m) for m in _fittable(models, baseline, n)]
     mark_equal([base] + fits, alpha)
-    selected, cands = select([base] + fits, alpha, kind, weights=weights)
-    selected, batch_fits = _batch_step(selected, fits, cols, fit, alpha, weights, n)
+    selected, cands = select([base] + fits, alpha, data.kind, weights=data.weights)
+    selected, batch_fits = _batch_step(selected, fits, data.columns, data.fit, alpha, data.weights, n)
     fits += [f for f in batch_fits if f not in fits]
     mark_equal([base] + fits, alpha)
-    fits.sort(key=lambda f: (f.held_out_rmse(kind) if f.held_out_rmse(kind) is not None
+    fits.sort(key=lambda f: (f.held_out_rmse(data.kind) if f.held_out_rmse(data.kind) is not None
                              else f.loo_rmse))
+    return _Fitted(base=base, fits=fits, selected=selected, candidates=cands)
 
-    inputs = {"L_mm": L, "d_mm": d, "h_mm": h, **cols.process}
-    lof_base = lack_of_fit(base.residuals, base.model.n_params, noise)
-    where, regime = residual_analysis(base.residuals, {**inputs, "predicted": base.predicted}, cols.groups)
-    by_group = group_analysis(base.residuals, cols.groups)
-    struct_base = structure(where + by_group)
+
+@dataclasses.dataclass
+class _Residuals:
+    """What the residuals of one fit say (step 8 of the module docstring).
+
+    Attributes
+    ----------
+    lack_of_fit : dict
+        :func:`gdfe.diagnosis.verdict.lack_of_fit` against the noise.
+    where : list of dict
+        Residual analysis against the numeric inputs and the prediction.
+    regime : str
+        Where the error concentrates, in words.
+    by_group : list of dict
+        Residual analysis by group column.
+    structure : list of dict
+        Structure in ``where`` and ``by_group`` (:func:`gdfe.diagnosis.where.structure`).
+    """
+
+    lack_of_fit: dict
+    where: list
+    regime: str
+    by_group: list
+    structure: list
+
+
+def _residuals_of(f, data):
+    """Whether the residuals of fit ``f`` are within the noise, where they lie, and what structure
+    is left in them."""
+    groups = data.columns.groups
+    lof = lack_of_fit(f.residuals, f.model.n_params, data.noise)
+    where, regime = residual_analysis(f.residuals, {**data.inputs, "predicted": f.predicted}, groups)
+    by_group = group_analysis(f.residuals, groups)
+    return _Residuals(lack_of_fit=lof, where=where, regime=regime, by_group=by_group,
+                      structure=structure(where + by_group))
+
+
+@dataclasses.dataclass
+class _Choice:
+    """The best model and the models the data cannot tell from it (``best`` among them)."""
+
+    best: EffectFit
+    named: list
+
+
+def _choose(fitted, data, res_base):
+    """The best model against the noise, and those the data cannot tell from it (steps 6 and 7 of
+    the module docstring)."""
+    base, noise, alpha = fitted.base, data.noise, data.tests.alpha
+    within = _lack_of_fit_test(noise)
+    best = fitted.selected
+    if noise.known and res_base.lack_of_fit["within"] and not res_base.structure:
+        best = base  # within the noise: nothing to explain
+    elif noise.known and not within(best):
+        best = within_noise_step(best, fitted.fits, alpha, within, data.kind_of, data.weights)
+    named = indistinguishable(best, [base] + fitted.fits, alpha, data.kind_of, within if noise.known else None,
+                              STEP_SE[0], data.weights, sigma=noise.sigma if noise.known else None)
+    return _Choice(best=prefer_plausible(best, named), named=named)
+
+
+def _lack_of_fit_test(noise):
+    """``within(fit)``: whether a fit passes the lack-of-fit test against ``noise`` (None with the
+    noise unknown), each fit tested once."""
     lofs = {}
 
     def within(f):
@@ -769,72 +962,72 @@ def _diagnose(tests, *, group=None, sigma=None, process=None, pairs=True, check=
             lofs[f.name] = lack_of_fit(f.residuals, f.model.n_params, noise)
         return lofs[f.name]["within"]
 
-    def kind_of(f):
-        return "loo" if f.held_out_rmse(kind) is None else kind
+    return within
 
-    best = selected
-    if noise.known and lof_base["within"] and not struct_base:
-        best = base  # within the noise: nothing to explain
-    elif noise.known and not within(best):
-        best = within_noise_step(best, fits, alpha, within, kind_of, weights)
-    named = indistinguishable(best, [base] + fits, alpha, kind_of, within if noise.known else None,
-                              STEP_SE[0], weights, sigma=noise.sigma if noise.known else None)
-    best = prefer_plausible(best, named)
 
-    def x_of(m):
-        return cols.process[m.process] if m.process else None
-
-    def group_of(m):
-        return m.group_index(cols.groups[m.group]) if m.group else None
-
-    separation = separating_test(named, L, d, h, x_of, group_of, sigma=noise.value) if len(named) > 1 else None
-    lof_best = lack_of_fit(best.residuals, best.model.n_params, noise)
-    where_b, regime_b = residual_analysis(best.residuals, {**inputs, "predicted": best.predicted}, cols.groups)
-    by_group_b = group_analysis(best.residuals, cols.groups)
-    struct_best = structure(where_b + by_group_b)
-    verdict = decide(best_name=best.name, best_is_baseline=not best.model.effects, lof_base=lof_base,
-                     lof_best=lof_best, structure_base=struct_base, structure_best=struct_best,
-                     gap_base=gap(alpha, base.loo_predicted, noise), gap_best=gap(alpha, best.loo_predicted, noise),
-                     noise=noise, named=[f.name for f in named],
-                     separation=None if separation is None else separation["text"],
-                     implausible=getattr(best, "implausible", None), kinds=getattr(best.model, "kinds", None),
-                     effects=best.model.effects,
-                     named_implausible={f.name: [p["name"] for p in getattr(f, "implausible", [])] for f in named})
+def _conclude(data, fitted, choice, res_base, *, baseline, signed):
+    """The :class:`Diagnosis` of the chosen model: its residuals, the verdict with what the columns
+    add to it, the baseline forms and the warnings (steps 7 to 9 of the module docstring)."""
+    t, cols, noise = data.tests, data.columns, data.noise
+    base, fits, best, named = fitted.base, fitted.fits, choice.best, choice.named
+    separation = (separating_test(named, t.L, t.d, t.h, data.x_of, data.group_of, sigma=noise.value)
+                  if len(named) > 1 else None)
+    res_best = _residuals_of(best, data)
+    verdict = _decide(data, base, choice, res_base, res_best, separation)
     renames = cols.roles.renames([f.model for f in [base] + fits])
-    conf = confounded({"L_mm": L, "d_mm": d, "h_mm": h}, numeric=cols.process, groups=cols.groups)
-    trends = strong_trends(where)
+    conf = confounded({"L_mm": t.L, "d_mm": t.d, "h_mm": t.h}, numeric=cols.process, groups=cols.groups)
+    trends = strong_trends(res_base.where)
     verdict = _amend(verdict, base=base, best=best, named=named, cols=cols, conf=conf, trends=trends,
-                     structure_any=bool(struct_base or struct_best), n=n, renames=renames)
-    forms = _baseline_forms(baseline, base, fits, fit, alpha, noise, best, renames)
-    excluded = [{"name": f.name, "reason": (f"parameters not identifiable from these data "
-                                            f"({', '.join(f.unidentified)})" if not f.identifiable else
-                                            f"predictions equal those of {f.equals}")}
-                for f in fits if not f.usable]
-    diag = Diagnosis(tests=tests, groups=groups, held_out=kind, baseline=base, fits=fits, best=best,
-                     candidates=cands, where=where + by_group, regime=regime, where_best=where_b + by_group_b,
-                     regime_best=regime_b, inputs=inputs, columns=cols, noise=noise, verdict=verdict,
-                     selected=selected, lack_of_fit={"baseline": lof_base, "best": lof_best},
-                     structure=struct_base, structure_best=struct_best, excluded=excluded, named=named,
-                     separation=separation, baseline_name=baseline, baseline_form=forms, confounded=conf,
-                     trends=trends, signed=bool(signed), renames=renames)
-    diag.warnings = _warnings(diag)
-    if small_negative:
-        diag.warnings.append(f"rows {', '.join(map(str, small_negative))}: negative angles within "
-                             f"{NEGATIVE_SIGMAS:g} standard deviations of the noise, kept as measured (the noise of "
-                             f"small folds; angles are magnitudes, positive towards the uncoated face)")
-    if signed:
-        diag.warnings.append("angles read as signed (--signed): the diagnosis uses their magnitudes |alpha|")
-    if check:
-        diag.check = _gdfe_check(diag, check)
-        if not all(c["converged"] for c in diag.check.values()):
-            diag.warnings.append("a GDFE solve of the check did not converge: its difference to the closed "
-                                 "form is not a discretisation error")
-    if screen:  # measurement artefacts: failed specimens, outliers, noise growing with the angle
-        diag = screen_artefacts(diag, lambda t, relative_sigma=None, main=False: _diagnose(
-            t, group=group, sigma=sigma, process=process, pairs=pairs, check=check if main else None, models=models,
-            roles=roles, baseline=baseline, signed=signed, screen=False, relative_sigma=relative_sigma))
-    diag.verdict = dataclasses.replace(diag.verdict, text=rename(diag.verdict.text, diag.renames))
+                     structure_any=bool(res_base.structure or res_best.structure), n=len(t), renames=renames)
+    forms = _baseline_forms(baseline, base, fits, data.fit, t.alpha, noise, best, renames)
+    diag = Diagnosis(tests=t, groups=data.groups, held_out=data.kind, baseline=base, fits=fits, best=best,
+                     candidates=fitted.candidates, where=res_base.where + res_base.by_group,
+                     regime=res_base.regime, where_best=res_best.where + res_best.by_group,
+                     regime_best=res_best.regime, inputs=data.inputs, columns=cols, noise=noise, verdict=verdict,
+                     selected=fitted.selected,
+                     lack_of_fit={"baseline": res_base.lack_of_fit, "best": res_best.lack_of_fit},
+                     structure=res_base.structure, structure_best=res_best.structure, excluded=_excluded(fits),
+                     named=named, separation=separation, baseline_name=baseline, baseline_form=forms,
+                     confounded=conf, trends=trends, signed=bool(signed), renames=renames)
+    diag.warnings = _warnings(diag) + _angle_warnings(data.small_negative, signed)
     return diag
+
+
+def _decide(data, base, choice, res_base, res_best, separation):
+    """The verdict on the gap (:func:`gdfe.diagnosis.verdict.decide`) from the baseline, the best
+    and the named models and their residuals."""
+    alpha, noise, best, named = data.tests.alpha, data.noise, choice.best, choice.named
+    return decide(best_name=best.name, best_is_baseline=not best.model.effects, lof_base=res_base.lack_of_fit,
+                  lof_best=res_best.lack_of_fit, structure_base=res_base.structure,
+                  structure_best=res_best.structure,
+                  gap_base=gap(alpha, base.loo_predicted, noise), gap_best=gap(alpha, best.loo_predicted, noise),
+                  noise=noise, named=[f.name for f in named],
+                  separation=None if separation is None else separation["text"],
+                  implausible=getattr(best, "implausible", None), kinds=getattr(best.model, "kinds", None),
+                  effects=best.model.effects,
+                  named_implausible={f.name: [p["name"] for p in getattr(f, "implausible", [])] for f in named})
+
+
+def _excluded(fits):
+    """The models of ``fits`` never chosen, and why (parameters not identifiable, predictions equal
+    to a simpler model's)."""
+    return [{"name": f.name, "reason": (f"parameters not identifiable from these data "
+                                        f"({', '.join(f.unidentified)})" if not f.identifiable else
+                                        f"predictions equal those of {f.equals}")}
+            for f in fits if not f.usable]
+
+
+def _angle_warnings(small_negative, signed):
+    """The warnings on how the angles were read: negative ones kept as noise (their rows), signed
+    ones taken as magnitudes."""
+    out = []
+    if small_negative:
+        out.append(f"rows {', '.join(map(str, small_negative))}: negative angles within "
+                   f"{NEGATIVE_SIGMAS:g} standard deviations of the noise, kept as measured (the noise of "
+                   f"small folds; angles are magnitudes, positive towards the uncoated face)")
+    if signed:
+        out.append("angles read as signed (--signed): the diagnosis uses their magnitudes |alpha|")
+    return out
 
 
 def _fittable(models, baseline, n):
