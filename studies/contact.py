@@ -394,14 +394,30 @@ def run(resolution="default", out=None):
     box = _box(cfg["box_pixel"])
     table = _table1(cfg["table_rows"], cfg["onset_steps"])
     cost = _cost(cfg)
-    h9, h14 = hinges["9"], hinges["14"]
     over = tube["activated 5 % more"]
+    result = {"study": NAME, "figure": "Self-contact (issue 13)", "title": "self-contact: rolls, tubes, boxes, Table 1",
+              "resolution": resolution, "h_mm": H,
+              "hinges": {k: {kk: vv for kk, vv in v.items() if not kk.startswith("_")} for k, v in hinges.items()},
+              "tube": {k: {"over": v["over"], "R": v["R"],
+                           **{m: {kk: vv for kk, vv in v[m].items() if not kk.startswith("_")} for m in ("off", "on")}}
+                       for k, v in tube.items()},
+              "box": {k: ({kk: vv for kk, vv in v.items() if not kk.startswith("_")} if isinstance(v, dict) else v)
+                      for k, v in box.items() if not k.startswith("_")},
+              "table1": table, "cost": cost, "headlines": _headlines(hinges, over, box, table),
+              "converged": _converged(hinges, over, box, table),
+              "summary": _summary(hinges, box, table, cost),
+              "_shapes": {"hinges": {k: v["_shapes"] for k, v in hinges.items()},
+                          "tube": (over["off"]["_points"], over["on"]["_points"], over["_design"]),
+                          "box": (box["off"]["_points"], box["on"]["_points"], box["_design"])}}
+    return finish(result, out, plot)
+
+
+def _headlines(hinges, over, box, table):
+    """The study's headline checks: no part with contact passes through itself, minima come back."""
+    h9, h14 = hinges["9"], hinges["14"]
     moved = box["perturbed"]
-    moved_hinges = ", ".join(
-        f"{k} mm {v['perturbed']['after']['alpha_rad'] - v['perturbed']['before']['alpha_rad']:+.1e} rad"
-        for k, v in hinges.items() if v["perturbed"])
     saturating = [s for s in table["specimens"] if s["saturates"]]
-    hl = [
+    return [
         headline("9 mm hinge without contact: deepest self-penetration", h9["free"]["penetration"]["depth_mm"],
                  None, 0.3 * H, "ge", unit="mm", paper_text="not in the paper"),
         headline("9 mm hinge with contact: deepest self-penetration", h9["contact"]["penetration"]["depth_mm"],
@@ -445,11 +461,26 @@ def run(resolution="default", out=None):
         headline("smallest fold at which Table 1's specimen geometry meets itself", table["onset"]["alpha_meets_rad"],
                  None, ALPHA_MAX, "ge", unit="rad", paper_text=f"alpha_max = {ALPHA_MAX} rad"),
     ]
+
+
+def _converged(hinges, over, box, table):
+    """Whether every solve of the study converged."""
+    moved = box["perturbed"]
     converged = all(h[m]["converged"] for h in hinges.values() for m in ("free", "contact"))
     converged &= all(h["perturbed"]["converged"] for h in hinges.values() if h["perturbed"])
     converged &= bool(moved["converged"])
     converged &= all(c["converged"] for c in (over["on"], over["off"], box["on"], box["off"]))
     converged &= all(s["converged"] for s in table["specimens"])
+    return bool(converged)
+
+
+def _summary(hinges, box, table, cost):
+    """The study's summary: the paper, our numbers, the verdict and where the shape depends on the path."""
+    h9, h14 = hinges["9"], hinges["14"]
+    moved = box["perturbed"]
+    moved_hinges = ", ".join(
+        f"{k} mm {v['perturbed']['after']['alpha_rad'] - v['perturbed']['before']['alpha_rad']:+.1e} rad"
+        for k, v in hinges.items() if v["perturbed"])
     largest = max(table["specimens"], key=lambda s: s["alpha_rad"])
     cost_text = "; ".join(f"{r['design']} {r['n_cells']} cells ({r['kind']}): auto {r['auto_ratio']:.2f}x wall, "
                           f"{r['auto_cpu_ratio']:.2f}x CPU; on {r['on_ratio']:.2f}x wall, "
@@ -457,7 +488,7 @@ def run(resolution="default", out=None):
                           f"{r['on']['iterations']} iterations with contact, {r['off']['iterations']} without "
                           f"(goal {r['goal']:g}x: {'met' if r['goal_met'] else 'NOT met'})"
                           for r in cost["rows"])
-    summary = {
+    return {
         "paper": "the paper simulates no self-contact; issue 13 asks that no simulated part pass through itself",
         "ours": (f"9 mm hinge: {h9['free']['alpha_rad']:.2f} rad and {h9['free']['penetration']['depth_mm']:.3f} mm "
                  f"deep without contact, {h9['contact']['alpha_rad']:.2f} rad with contact, min gap "
@@ -491,19 +522,6 @@ def run(resolution="default", out=None):
                                   for k, v in hinges.items()
                                   if v["perturbed"] and v["perturbed"]["energy_change_rel"] < -MINIMUM_REL)),
     }
-    result = {"study": NAME, "figure": "Self-contact (issue 13)", "title": "self-contact: rolls, tubes, boxes, Table 1",
-              "resolution": resolution, "h_mm": H,
-              "hinges": {k: {kk: vv for kk, vv in v.items() if not kk.startswith("_")} for k, v in hinges.items()},
-              "tube": {k: {"over": v["over"], "R": v["R"],
-                           **{m: {kk: vv for kk, vv in v[m].items() if not kk.startswith("_")} for m in ("off", "on")}}
-                       for k, v in tube.items()},
-              "box": {k: ({kk: vv for kk, vv in v.items() if not kk.startswith("_")} if isinstance(v, dict) else v)
-                      for k, v in box.items() if not k.startswith("_")},
-              "table1": table, "cost": cost, "headlines": hl, "converged": bool(converged), "summary": summary,
-              "_shapes": {"hinges": {k: v["_shapes"] for k, v in hinges.items()},
-                          "tube": (over["off"]["_points"], over["on"]["_points"], over["_design"]),
-                          "box": (box["off"]["_points"], box["on"]["_points"], box["_design"])}}
-    return finish(result, out, plot)
 
 
 def plot(result, out):

@@ -184,7 +184,7 @@ def _record(dsg, size):
 
 def run(resolution="default", out=None):
     """Design each target at each size, the 10^4-cell design and the cap out of reach; return the numbers."""
-    from gdfe.inverse2d import closest_reachable, design_surface, make_target, scale_for
+    from gdfe.inverse2d import design_surface, make_target
 
     check_resolution(resolution)
     cfg = SETTINGS[resolution]
@@ -201,7 +201,25 @@ def run(resolution="default", out=None):
     twist["size_mm"] = _sizes(cfg, "twist")[-1]
     twist["thinner"] = _metric_only(twist["size_mm"], pixel, h=THIN_H)
 
-    # one design at about 10^4 cells, timed
+    big, timing = _timed_design(cfg)
+    unreachable, u, near_design = _unreachable(cfg)
+    twist_folds = twist["start_from_associates"] + twist["relaxed_from_associates"] + twist["thinner"]["folds"]
+    converged = (all(r["converged"] for n in TARGETS for r in sweeps[n]) and timing["converged"]
+                 and unreachable["converged"] and all(r["converged"] for r in twist_folds))
+    result = {"study": NAME, "figure": "not in the paper (issue 17)", "title": "2-D inverse design from a target "
+              "surface", "resolution": resolution, "settings": {**cfg, "d_mm": D, "h_mm": paper.H},
+              "sweeps": sweeps, "twist": twist, "timing": timing, "unreachable": unreachable,
+              "headlines": _headlines(cfg, sweeps, twist, big, unreachable), "converged": converged, "summary": _summary(sweeps, twist, timing),
+              "_masks": {n: (largest[n].top, largest[n].bottom, largest[n].film.pixel) for n in TARGETS},
+              "_profile": _profile(u, near_design)}
+    return finish(result, out, plot)
+
+
+def _timed_design(cfg):
+    """One design of the dome at about 10^4 cells, timed: the design and its timing record."""
+    from gdfe.inverse2d import design_surface, make_target
+
+    it = cfg["iterations"]
     t_size, t_pixel = cfg["timing"]
     load0 = os.getloadavg()
     t0 = time.perf_counter()
@@ -214,8 +232,14 @@ def run(resolution="default", out=None):
               "distance": _distances(big), "reached": big.reached, "converged": bool(big.printable.converged),
               "history": [{"evaluation": r["evaluation"], "rms_mm": r["rms_mm"], "seconds": r["seconds"]}
                           for r in big.history]}
+    return big, timing
 
-    # a target out of reach, and the closest reachable one
+
+def _unreachable(cfg):
+    """A cap out of reach and the closest reachable dome, designed: their record, the cap's design and the dome's."""
+    from gdfe.inverse2d import closest_reachable, design_surface, make_target, scale_for
+
+    it = cfg["iterations"]
     u_size, u_radius = UNREACHABLE
     cap = make_target("dome", u_size, radius=u_radius)
     u = design_surface(cap, pixel=cfg["unreachable_pixel"], d=D, iterations=it)
@@ -230,15 +254,21 @@ def run(resolution="default", out=None):
                                       "verdict": near_design.verdict()},
                    "converged": bool(u.printable.converged and near_design.printable.converged),
                    "masks_ok": bool(u.masks_ok and near_design.masks_ok)}
+    return unreachable, u, near_design
 
+
+def _headlines(cfg, sweeps, twist, big, unreachable):
+    """The study's headline checks: the designs' distances, the masks, and the cap out of reach said so."""
     big_size = cfg["sizes"][-1]
     rel = {n: sweeps[n][-1]["distance"]["printable"]["rms_mm"] / sweeps[n][-1]["size_mm"] for n in TARGETS}
     worst_start = max(r["distance"]["relaxed"]["rms_mm"] / max(r["distance"]["start"]["rms_mm"], 1e-300)
                       for n in ("dome", "saddle") for r in sweeps[n])
     masks_ok = all(r["masks_ok"] for n in TARGETS for r in sweeps[n]) and big.masks_ok and unreachable["masks_ok"]
+    u_size, u_radius = UNREACHABLE
     u_rms = unreachable["distance"]["printable"]["rms_mm"]
+    near_radius = unreachable["closest_design"]["radius_mm"]
     near_rms = unreachable["closest_design"]["distance"]["printable"]["rms_mm"]
-    hl = [
+    return [
         headline(f"dome: printed fold's RMS distance over the film size at {big_size:g} mm", rel["dome"], None,
                  TOLERANCE_FRACTION, "le", note="the design's tolerance, 1 % of the film's size"),
         headline(f"saddle: printed fold's RMS distance over the film size at {big_size:g} mm", rel["saddle"], None,
@@ -255,15 +285,16 @@ def run(resolution="default", out=None):
         headline("every mask respects w_min", float(masks_ok), 1.0, kind="eq"),
         headline(f"cap of radius {u_radius:g} mm on a {u_size:g} mm film: reachability margin in contraction",
                  unreachable["reachability"]["margin"], None, 0.0, "le", note="< 0: out of reach"),
-        headline("cap out of reach: printed fold's RMS distance over the tolerance", u_rms / u.tolerance_mm, None, 1.0,
+        headline("cap out of reach: printed fold's RMS distance over the tolerance", u_rms / unreachable["tolerance_mm"], None, 1.0,
                  "ge", note="missed, and said so"),
-        headline(f"closest reachable dome (radius {near.params['radius_mm']:.3g} mm): printed RMS over the film size",
+        headline(f"closest reachable dome (radius {near_radius:.3g} mm): printed RMS over the film size",
                  near_rms / u_size, None, TOLERANCE_FRACTION, "le", note="the answer's shape is one the design reaches"),
     ]
-    twist_folds = twist["start_from_associates"] + twist["relaxed_from_associates"] + twist["thinner"]["folds"]
-    converged = (all(r["converged"] for n in TARGETS for r in sweeps[n]) and timing["converged"]
-                 and unreachable["converged"] and all(r["converged"] for r in twist_folds))
-    summary = {
+
+
+def _summary(sweeps, twist, timing):
+    """The study's summary: the paper, our numbers, the verdict and why the twisted strip is not reached."""
+    return {
         "paper": "the paper designs 1-D strips only and names 2-D-to-3-D design as future work",
         "ours": "; ".join(f"{n} at {sweeps[n][-1]['size_mm']:g} mm: printed RMS {sweeps[n][-1]['distance']['printable']['rms_mm']:.3g} mm "
                           f"(relaxed {sweeps[n][-1]['distance']['relaxed']['rms_mm']:.3g}, start "
@@ -291,13 +322,6 @@ def run(resolution="default", out=None):
                         + ", ".join(f"{r['distance']['printable']['rms_mm'] / r['size_mm']:.3g} at {r['size_mm']:g} mm"
                                     for r in sweeps["twist"])),
     }
-    result = {"study": NAME, "figure": "not in the paper (issue 17)", "title": "2-D inverse design from a target "
-              "surface", "resolution": resolution, "settings": {**cfg, "d_mm": D, "h_mm": paper.H},
-              "sweeps": sweeps, "twist": twist, "timing": timing, "unreachable": unreachable, "headlines": hl,
-              "converged": converged, "summary": summary,
-              "_masks": {n: (largest[n].top, largest[n].bottom, largest[n].film.pixel) for n in TARGETS},
-              "_profile": _profile(u, near_design)}
-    return finish(result, out, plot)
 
 
 def _profile(u, near):
