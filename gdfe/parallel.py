@@ -193,7 +193,8 @@ def stop_workers(grace=2.0):
     """
     import time
 
-    pids = [p for p in _descendants(os.getpid()) if p != _resource_tracker()]
+    trackers = _resource_trackers()
+    pids = [p for p in _descendants(os.getpid()) if p not in trackers]
     for pid in pids:
         with contextlib.suppress(OSError):
             os.kill(pid, signal.SIGTERM)
@@ -211,13 +212,18 @@ def stop_workers(grace=2.0):
     return pids
 
 
-def _resource_tracker():
-    """The process id of multiprocessing's resource tracker, which must outlive the workers (it frees
-    their semaphores, and ends by itself with this process); None when there is none."""
+def _resource_trackers():
+    """The process ids of the resource trackers started here: multiprocessing's and joblib's (loky's).
+
+    They must outlive the workers: each frees what its workers leave (semaphores, joblib's memory-mapped
+    folders) and ends by itself with this process. Stopped with the workers, loky's was started again
+    by the next parallel run, with a warning that resources might leak.
+    """
     import sys
 
-    tracker = sys.modules.get("multiprocessing.resource_tracker")
-    return getattr(getattr(tracker, "_resource_tracker", None), "_pid", None)
+    modules = ("multiprocessing.resource_tracker", "joblib.externals.loky.backend.resource_tracker")
+    pids = {getattr(getattr(sys.modules.get(m), "_resource_tracker", None), "_pid", None) for m in modules}
+    return pids - {None}
 
 
 def _running(pid):

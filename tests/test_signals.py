@@ -74,6 +74,29 @@ def test_stop_workers_ends_every_child_and_grandchild():
     assert not _alive(pids)
 
 
+def _negate(x):
+    return -x
+
+
+def test_stop_workers_spares_the_resource_trackers():
+    """joblib's workers are stopped, its resource tracker is not: it frees what they leave and ends with
+    this process. Stopped too, the next parallel run started it again and warned that resources might leak."""
+    import warnings
+
+    pytest.importorskip("joblib")
+    from gdfe.parallel import _resource_trackers, parallel_map
+
+    assert parallel_map(_negate, [1, 2, 3, 4], n_jobs=2, progress=False) == [-1, -2, -3, -4]
+    trackers = _resource_trackers()
+    assert trackers and set(trackers) <= set(_descendants(os.getpid()))  # loky's, at least
+    stopped = stop_workers(grace=2.0)
+    assert stopped and not set(stopped) & trackers  # the pool's workers went, the trackers stayed
+    assert not _alive(stopped) and len(_alive(trackers)) == len(trackers)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert parallel_map(_negate, [5, 6], n_jobs=2, progress=False) == [-5, -6]
+
+
 def test_stopping_workers_turns_sigterm_into_stopped_and_restores_the_handler():
     before = signal.getsignal(signal.SIGTERM)
     with pytest.raises(Stopped) as info:
