@@ -40,7 +40,7 @@ import numpy as np
 
 from gdfe import paper
 from gdfe.inverse2d.design import TOLERANCE_FRACTION
-from studies._common import check_resolution, finish, headline, main_of, pyplot
+from studies._common import check_resolution, finish, headline, main_of, progress, pyplot
 
 NAME = "inverse2d"
 TARGETS = ("dome", "saddle", "twist")
@@ -189,19 +189,22 @@ def run(resolution="default", out=None):
     check_resolution(resolution)
     cfg = SETTINGS[resolution]
     pixel, it = cfg["pixel"], cfg["iterations"]
-    sweeps, largest = {}, {}
-    for name in TARGETS:
-        rows = []
-        for size in _sizes(cfg, name):
-            dsg = design_surface(make_target(name, size), pixel=pixel, d=D, iterations=it)
-            rows.append(_record(dsg, size))
-            largest[name] = dsg
-        sweeps[name] = rows
+    jobs = [(name, size) for name in TARGETS for size in _sizes(cfg, name)]
+    # the sweep's designs, then the twisted strip's starts, the timed design and the cap out of reach
+    parts = progress(range(len(jobs) + 3), "designs")
+    sweeps, largest = {name: [] for name in TARGETS}, {}
+    for name, size in jobs:
+        next(parts)
+        dsg = design_surface(make_target(name, size), pixel=pixel, d=D, iterations=it)
+        sweeps[name].append(_record(dsg, size))
+        largest[name] = dsg
+    next(parts)
     twist = _twist_limit(largest["twist"])
     twist["size_mm"] = _sizes(cfg, "twist")[-1]
     twist["thinner"] = _metric_only(twist["size_mm"], pixel, h=THIN_H)
-
+    next(parts)
     big, timing = _timed_design(cfg)
+    next(parts)
     unreachable, u, near_design = _unreachable(cfg)
     twist_folds = twist["start_from_associates"] + twist["relaxed_from_associates"] + twist["thinner"]["folds"]
     converged = (all(r["converged"] for n in TARGETS for r in sweeps[n]) and timing["converged"]

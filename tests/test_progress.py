@@ -55,6 +55,29 @@ def test_lines_come_at_most_every_interval(monkeypatch, capsys):
                      "gdfe: solving, Newton 30, residual 1.7e-02 h, 30 s"]
 
 
+def test_a_studys_sweep_step_labels_its_lines_through_the_newton_iterations(monkeypatch, capsys):
+    """``gdfe study``: the sweep's step (studies._common.progress) stays on the line while its solves
+    report their Newton iterations; it was a stage, which the first iteration wiped out."""
+    from studies._common import progress
+
+    now = [0.0]
+    monkeypatch.setattr(P, "_clock", lambda: now[0])
+    monkeypatch.setattr(P, "HEARTBEAT", False)
+    monkeypatch.setattr(P, "INTERVAL", 10.0)
+    log = logging.getLogger("gdfe.solver.newton")
+    with P.StudyProgress(None, "study inverse2d") as shown:
+        for k in progress(range(2), "designs"):
+            for it in range(1, 16):  # a Newton iteration a second
+                now[0] += 1.0
+                log.debug("newton %d", it, extra={"progress": {"event": "newton", "iteration": it,
+                                                                "residual_h": 1e-3}})
+        assert (shown.done, shown.total) == (1, 2)
+    lines = _lines(capsys.readouterr().err)
+    assert lines == ["gdfe: study inverse2d designs 1/2, Newton 10, residual 1.0e-03 h, 10 s",
+                     "gdfe: study inverse2d designs 2/2, Newton 5, residual 1.0e-03 h, 20 s",
+                     "gdfe: study inverse2d designs 2/2, Newton 15, residual 1.0e-03 h, 30 s"], lines
+
+
 def test_a_step_that_says_nothing_still_gets_a_line_every_interval(monkeypatch, capsys):
     monkeypatch.setattr(P, "INTERVAL", 0.05)
     log = logging.getLogger("gdfe.solver.newton")

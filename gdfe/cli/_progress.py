@@ -350,11 +350,17 @@ class StudyProgress(Progress):
                 self.write(study_line(info))
                 self.step("")
             return
-        if not self.report and event == "steps" and info.get("total"):
-            self.total = max(int(info["total"]), self.done)
-            self.done = int(info["step"]) - 1
-            if self.bar is not None:
-                self.bar.total, self.bar.n = self.total, self.done
+        if not self.report and event == "steps":
+            step, total = info.get("step"), info.get("total")
+            if total:
+                self.total = max(int(total), self.done)
+                self.done = int(step) - 1
+                if self.bar is not None:
+                    self.bar.total, self.bar.n = self.total, self.done
+            # the sweep's step labels the line until the next one: a stage would give way to the first
+            # Newton record ("study inverse2d, Newton 12, ..." for half an hour, no word of which design)
+            self.step(info["stage"] + (f" {step}/{total}" if total else f" {step}" if step else ""))
+            return
         super().on(info)
 
 
