@@ -82,6 +82,7 @@ def parallel_map(func, items, n_jobs=None, desc=None, progress=None, scheduler=N
         if n_jobs == 1 or len(items) <= 1:
             out = []
             for x in items:
+                _report(desc, len(out), len(items))
                 out.append(func(x))
                 if bar:
                     bar.update()
@@ -95,14 +96,24 @@ def parallel_map(func, items, n_jobs=None, desc=None, progress=None, scheduler=N
 
         shared = Shared(func, min(n_jobs, len(items)))  # the solver's threads divided among the processes
         out = []
+        _report(desc, 0, len(items))
         for res in Parallel(n_jobs=n_jobs, return_as="generator")(delayed(shared)(x) for x in items):
             out.append(res)
+            _report(desc, len(out), len(items))
             if bar:
                 bar.update()
         return out
     finally:
         if bar:
             bar.close()
+
+
+def _report(desc, done, total):
+    """A progress record (``gdfe.cli._progress``'s ``"steps"``): ``done`` of ``total`` items finished, the
+    next under way; none once all are. The command line shows it off a terminal too, where the bar is not."""
+    if done < total:
+        log.debug("%s %d/%d", desc or "items", done + 1, total,
+                  extra={"progress": {"event": "steps", "stage": desc or "items", "step": done + 1, "total": total}})
 
 
 def _dask_map(func, items, scheduler, desc, progress):
@@ -127,8 +138,10 @@ def _dask_map(func, items, scheduler, desc, progress):
             tqdm = None
         bar = tqdm(total=len(items), desc=desc, disable=not progress) if tqdm else None
         try:
-            for fut in as_completed(futures):
+            _report(desc, 0, len(items))
+            for done, fut in enumerate(as_completed(futures), start=1):
                 out[index[fut.key]] = fut.result()  # a task's own exception is raised here, with its traceback
+                _report(desc, done, len(items))
                 if bar:
                     bar.update()
         except KeyboardInterrupt:  # Ctrl-C or SIGTERM (Stopped): the cluster's workers drop our tasks too

@@ -58,3 +58,17 @@ def test_unreachable_scheduler_is_a_clear_error():
 
     with pytest.raises(gdfe.GdfeError, match="cannot reach the Dask scheduler at 'tcp://127.0.0.1:9'"):
         parallel_map(_square_after, [1], scheduler="tcp://127.0.0.1:9")
+
+
+@pytest.mark.parametrize("where", ["this process", "processes", "cluster"])
+def test_every_path_reports_its_items_through_the_log(where, cluster, caplog):
+    """The command line's progress off a terminal reads these records (the bar is tqdm's alone): item
+    k of n under way, from the first to the last."""
+    import logging
+
+    kw = {"this process": {"n_jobs": 1}, "processes": {"n_jobs": 2},
+          "cluster": {"scheduler": cluster.scheduler_address}}[where]
+    with caplog.at_level(logging.DEBUG, logger="gdfe.parallel"):
+        assert parallel_map(_square_after, range(4), desc="squares", progress=False, **kw) == [0, 1, 4, 9]
+    steps = [r.progress for r in caplog.records if hasattr(r, "progress")]
+    assert steps == [{"event": "steps", "stage": "squares", "step": k, "total": 4} for k in (1, 2, 3, 4)]

@@ -78,6 +78,27 @@ def test_a_studys_sweep_step_labels_its_lines_through_the_newton_iterations(monk
                      "gdfe: study inverse2d designs 2/2, Newton 15, residual 1.0e-03 h, 30 s"], lines
 
 
+def _newton_once(x):
+    logging.getLogger("gdfe.solver.newton").debug("newton", extra={"progress": {
+        "event": "newton", "iteration": x, "residual_h": 1e-3}})
+    return x
+
+
+def test_a_studys_parallel_sweep_labels_its_lines_without_the_studys_name_twice(monkeypatch, capsys):
+    """parallel_map reports its items (gdfe.parallel), named as the study names them ("fig09 letters"):
+    within ``gdfe study fig09`` the line reads "study fig09 letters 2/2", not "study fig09 fig09 letters"."""
+    from gdfe.parallel import parallel_map
+
+    monkeypatch.setattr(P, "HEARTBEAT", False)
+    monkeypatch.setattr(P, "INTERVAL", 0.0)
+    with P.StudyProgress(None, "study fig09"):
+        assert parallel_map(_newton_once, [7, 8], n_jobs=1, desc="fig09 letters", progress=False) == [7, 8]
+    lines = _lines(capsys.readouterr().err)
+    assert any(re.match(r"gdfe: study fig09 letters 2/2, Newton 8, residual 1\.0e-03 h, \d+ s$", ln)
+               for ln in lines), lines
+    assert not any("fig09 fig09" in ln for ln in lines), lines
+
+
 def test_a_step_that_says_nothing_still_gets_a_line_every_interval(monkeypatch, capsys):
     monkeypatch.setattr(P, "INTERVAL", 0.05)
     log = logging.getLogger("gdfe.solver.newton")

@@ -29,7 +29,8 @@ attribute (``log.debug(..., extra={"progress": {...}})``) is a progress report, 
 - ``"stage"``: a long step outside the Newton loop (``stage``; ``step``/``total`` where it
   counts, as the penetration check's chunks do: step ``step`` of ``total`` under way);
 - ``"steps"``: a step of a study's sweep (``stage``, ``step``, ``total``;
-  :func:`studies._common.progress`): the bar of ``gdfe study`` counts them;
+  :func:`studies._common.progress`), or an item of :func:`gdfe.parallel.parallel_map`: the bar of
+  ``gdfe study`` counts them, and its lines name the step under way (``study fig09 letters 3/16``);
 - ``"study"``: a study of the report begins (``status`` None) or ends (``status``, ``seconds``),
   ``name``, ``step`` of ``total``.
 
@@ -359,7 +360,10 @@ class StudyProgress(Progress):
                     self.bar.total, self.bar.n = self.total, self.done
             # the sweep's step labels the line until the next one: a stage would give way to the first
             # Newton record ("study inverse2d, Newton 12, ..." for half an hour, no word of which design)
-            self.step(info["stage"] + (f" {step}/{total}" if total else f" {step}" if step else ""))
+            stage = info["stage"]
+            name = self.desc.split(" ", 1)[-1] + " "  # "fig06 hinges" in study fig06: "study fig06 hinges 3/12"
+            stage = stage[len(name):] if stage.startswith(name) else stage
+            self.step(stage + (f" {step}/{total}" if total else f" {step}" if step else ""))
             return
         super().on(info)
 
