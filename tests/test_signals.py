@@ -74,27 +74,35 @@ def test_stop_workers_ends_every_child_and_grandchild():
     assert not _alive(pids)
 
 
-def _negate(x):
-    return -x
+_SPARE = """
+import json, os, time
+from gdfe.parallel import _descendants, _resource_trackers, _running, parallel_map, stop_workers
+assert parallel_map(abs, [-1, 2, -3, 4], n_jobs=2, progress=False) == [1, 2, 3, 4]
+trackers = _resource_trackers()
+below = set(_descendants(os.getpid()))
+stopped = stop_workers(grace=2.0)
+end = time.monotonic() + 5
+while any(_running(p) for p in stopped) and time.monotonic() < end:
+    time.sleep(0.05)
+print(json.dumps({"trackers": sorted(trackers), "below": sorted(below), "stopped": stopped,
+                  "alive": [p for p in stopped if _running(p)], "trackers_alive": [p for p in trackers if _running(p)]}))
+"""
 
 
 def test_stop_workers_spares_the_resource_trackers():
     """joblib's workers are stopped, its resource tracker is not: it frees what they leave and ends with
-    this process. Stopped too, the next parallel run started it again and warned that resources might leak.
-    (That next run is not made here: until joblib's executor has seen its workers end, a run submitted to
-    it fails with TerminatedWorkerError, and in the command line a stop ends the process.)"""
-    pytest.importorskip("joblib")
-    from gdfe.parallel import _resource_trackers, parallel_map
+    the process. Stopped too, the next parallel run started it again and warned that resources might leak.
+    In a process of its own: the test process's joblib executor, shared by every test, is left alone."""
+    import json
 
-    assert parallel_map(_negate, [1, 2, 3, 4], n_jobs=2, progress=False) == [-1, -2, -3, -4]
-    trackers = _resource_trackers()
-    assert trackers and set(trackers) <= set(_descendants(os.getpid()))  # loky's, at least
-    stopped = stop_workers(grace=2.0)
-    assert stopped and not set(stopped) & trackers  # the pool's workers went, the trackers stayed
-    end = time.monotonic() + 5
-    while _alive(stopped) and time.monotonic() < end:
-        time.sleep(0.05)
-    assert not _alive(stopped) and len(_alive(trackers)) == len(trackers)
+    pytest.importorskip("joblib")
+    out = subprocess.run([sys.executable, "-c", _SPARE], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    r = json.loads(out.stdout.splitlines()[-1])
+    assert r["trackers"] and set(r["trackers"]) <= set(r["below"])  # loky's, at least
+    assert r["stopped"] and not set(r["stopped"]) & set(r["trackers"])  # the pool's workers went, the trackers stayed
+    assert not r["alive"] and r["trackers_alive"] == r["trackers"]
+    assert "resource_tracker" not in out.stderr, out.stderr
 
 
 def test_stopping_workers_turns_sigterm_into_stopped_and_restores_the_handler():
