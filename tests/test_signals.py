@@ -57,6 +57,17 @@ def _cmdline(pid):
         return ""
 
 
+def _new_joblib_executor():
+    """stop_workers stops every child of this process, the workers of the joblib executor the tests share
+    too: shut it down, so that the next test's parallel run starts a new one (with it, until joblib had
+    seen its workers end, a run submitted to it failed with TerminatedWorkerError)."""
+    try:
+        from joblib.externals.loky import get_reusable_executor
+    except ModuleNotFoundError:
+        return
+    get_reusable_executor().shutdown(wait=True, kill_workers=True)
+
+
 def test_stop_workers_ends_every_child_and_grandchild():
     grandchild = "subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(60)'])"
     child = subprocess.Popen([sys.executable, "-c", f"import subprocess, sys, time; {grandchild}; time.sleep(60)"])
@@ -65,7 +76,10 @@ def test_stop_workers_ends_every_child_and_grandchild():
         time.sleep(0.05)
     pids = [child.pid, *_descendants(child.pid)]  # (the test process may have other children of its own)
     assert len(pids) == 2 and set(pids) <= set(_descendants(os.getpid()))
-    stopped = stop_workers(grace=2.0)
+    try:
+        stopped = stop_workers(grace=2.0)
+    finally:
+        _new_joblib_executor()
     assert set(pids) <= set(stopped)
     child.wait(timeout=10)
     end = time.monotonic() + 5
