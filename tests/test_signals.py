@@ -102,7 +102,7 @@ end = time.monotonic() + 5
 while any(_running(p) for p in stopped) and time.monotonic() < end:
     time.sleep(0.05)
 print(json.dumps({"trackers": sorted(trackers), "named": sorted(named), "loky": loky, "stopped": stopped,
-                  "alive": [p for p in stopped if _running(p)], "trackers_alive": [p for p in trackers if _running(p)]}))
+                  "alive": [p for p in stopped if _running(p)], "trackers_alive": sorted(p for p in trackers if _running(p))}))
 """
 
 
