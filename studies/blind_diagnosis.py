@@ -926,103 +926,138 @@ def _fmt(x):
 
 
 def _write_md(result, out):
+    """The benchmark's tables as Markdown, ``out/blind_diagnosis.md``."""
     lines = [f"# Blind diagnosis benchmark ({result['resolution']})", ""]
     s = result.get("accuracy")
     if s:
-        lines += ["## Generators", ""]
-        for n, g in result["generators"].items():
-            lines.append(f"- `{n}` ({g['kind']}{', sensitivity' if g['sensitivity'] else ''}): {g['forward']}; "
-                         f"right: {', '.join(g['answers'])}; ranges {g['ranges']}")
-        lines += ["", "## Accuracy per class against sigma", "",
-                  "| sigma | " + " | ".join(s[next(iter(s))]["classes"]) + " | share null/outside |",
-                  "|---|" + "---|" * (len(s[next(iter(s))]["classes"]) + 1)]
-        for sig, e in s.items():
-            lines.append(f"| {sig} | " + " | ".join(
-                f"{_fmt(c['accuracy'])} ({c['n']}; visible {_fmt(c['accuracy_visible'])} of {c['n_visible']}, "
-                f"tellable {_fmt(c.get('accuracy_tellable'))} of {c.get('n_tellable')}; "
-                f"mean named set {_fmt(c.get('mean_set_size'))}"
-                + (f"; truth in a named model {_fmt(c['truth_in_a_named_model'])}"
-                   if "truth_in_a_named_model" in c else "") + ")" for c in e["classes"].values())
-                + f" | {e['share_null_or_outside']:.2f} |")
-        lines += ["", "## Accuracy per generator against sigma", "",
-                  "Accuracy on all data sets (on the visible ones, visibility >= "
-                  f"{VISIBLE:g} sigma, in brackets), the median visibility, the share of data sets with an "
-                  f"alias and the mean size of the named sets at sigma = {SIGMA_GOAL:g} rad.", "",
-                  "| generator | " + " | ".join(s) + " | median visibility [rad] | aliased | mean named set |",
-                  "|---|" + "---|" * (len(s) + 3)]
         goal = f"{SIGMA_GOAL:g}"
-        for g in s[next(iter(s))]["generators"]:
-            vis = s[next(iter(s))]["generators"][g]["median_visibility"]
-            al = s[goal]["generators"][g]["aliased"] if goal in s else None
-            size = s[goal]["generators"][g].get("mean_set_size") if goal in s else None
-            lines.append(f"| {g} | " + " | ".join(
-                f"{_fmt(e['generators'][g]['accuracy'])} ({_fmt(e['generators'][g].get('accuracy_visible'))})"
-                for e in s.values()) + f" | {vis:.3f} | {_fmt(al)} | {_fmt(size)} |")
+        lines += _md_generators(result["generators"]) + _md_accuracy(s, goal)
         if goal in s:
-            lines += ["", f"## Strict rule at sigma = {goal} rad", "",
-                      "Right only if no single wrong physical cause is credited (studies.blind_diagnosis."
-                      "wrong_physics_credited), beside the package's rule; identified: a measurement artefact "
-                      "named or rows flagged.", "",
-                      "| class | n | strict | package's rule | strict, tellable | identified | strict misses |",
-                      "|---|---|---|---|---|---|---|"]
-            for k, c in s[goal]["classes"].items():
-                if c["n"]:
-                    lines.append(f"| {k} | {c['n']} | {_fmt(c.get('accuracy_strict'))} | {_fmt(c['accuracy'])} | "
-                                 f"{_fmt(c.get('accuracy_strict_tellable'))} | {_fmt(c.get('identified'))} | "
-                                 + ", ".join(f"{m} {n}" for m, n in c.get("misses_strict", {}).items()) + " |")
-            lines += ["", "| generator | n | strict | package's rule | identified | its rows flagged | strict misses |",
-                      "|---|---|---|---|---|---|---|"]
-            for g, e in s[goal]["generators"].items():
-                lines.append(f"| {g} | {e['n']} | {_fmt(e.get('accuracy_strict'))} | {_fmt(e['accuracy'])} | "
-                             f"{_fmt(e.get('identified'))} | {_fmt(e.get('rows_found'))} | "
-                             + ", ".join(f"{m} {n}" for m, n in e.get("misses_strict", {}).items()) + " |")
-            missed = [r for r in result["records"] if r["sigma"] == float(goal) and r.get("miss_strict")]
-            lines += ["", f"### Every miss by the strict rule at sigma = {goal} rad", "",
-                      "Plausible: whether the diagnosis finds the credited model's parameters in their physical "
-                      "ranges (- where it does not say).", "",
-                      "| generator | design | rep | verdict | named | credited | plausible | reason |",
-                      "|---|---|---|---|---|---|---|---|"]
-            for r in missed:
-                pl = r.get("credited_plausible")
-                lines.append(f"| {r['generator']} | {r['design']} | {r['rep']} | {r['verdict']} | "
-                             f"{', '.join(r['named'])} | {r.get('credited') or '-'} | {'-' if pl is None else pl} | "
-                             f"{r['miss_strict']} |")
-            lines += ["", f"## Misses at sigma = {goal} rad by reason (package's rule)", "",
-                      "Tellable data sets: null ones; visible effects whose own catalogue form reproduces the "
-                      "noise-free angles within sigma (catalogue), or that no catalogue model reproduces within "
-                      "sigma (outside). Reasons (studies.blind_diagnosis.miss_reason): " + "; ".join(MISSES) + ".", "",
-                      "| generator | n | right | " + " | ".join(MISSES) + " |", "|---|---|---|" + "---|" * len(MISSES)]
-            for g, e in s[goal]["generators"].items():
-                m = e.get("misses", {})
-                lines.append(f"| {g} | {e['n']} | {round(e['accuracy'] * e['n'])} | "
-                             + " | ".join(str(m.get(k, 0)) for k in MISSES) + " |")
-            c = s[goal]["confusion"]
-            for key, title in (("verdict", "class x verdict"), ("named", "generator x named model")):
-                m = c[key]
-                lines += ["", f"## Confusion at sigma = {goal} rad: {title}", "",
-                          "| | " + " | ".join(m["columns"]) + " |", "|---|" + "---|" * len(m["columns"])]
-                for row, vals in zip(m["rows"], m["matrix"]):
-                    lines.append(f"| {row} | " + " | ".join(str(v) for v in vals) + " |")
+            lines += _md_strict(s[goal], goal, result["records"]) + _md_misses(s[goal], goal)
+            lines += _md_confusion(s[goal]["confusion"], goal)
     if "cost" in result:
-        c = result["cost"]
-        lines += ["", "## Cost", "", f"`{c['command']}`: {c['rows']} rows in {c['seconds']:.1f} s wall, "
-                  f"{c['cpu_seconds']:.1f} s of processor time, peak RSS {c['peak_rss_mib']:.0f} MiB (load "
-                  f"{c['load']:.2f} on {c['cores']} cores before the run); verdict {c['verdict']}, best {c['best']}."]
+        lines += _md_cost(result["cost"])
     if "scan_checks" in result:
-        sc = result["scan_checks"]
-        lines += ["", "## Is the scan the part?", "", "| case | same part | matches | relative residual | coverage | "
-                  "factor | simulations | s |", "|---|---|---|---|---|---|---|---|"]
-        for r in sc["cases"]:
-            lines.append(f"| {r['case']} | {r['same_part']} | {r['matches']} | {r['relative_residual']:.3f} | "
-                         f"{r['coverage']:.2f} | {r['factor']:.2f} | {r['simulations']} | {r['seconds']:.1f} |")
-        f = sc["exact_copy"]
-        lines += ["", f"Exact copy of the 1.6 mm hinge's {f['n_vertices']} vertices (nz = 2) through ICP: RMS "
-                  f"{1000 * f['icp_rms_all_vertices_mm']:.1f} um; its {f['n_surface_vertices']} surface vertices "
-                  f"alone: {f['icp_rms_surface_vertices_mm']:.2g} mm (the others lie inside the film, "
-                  f"{1000 * f['half_thickness_mm']:.0f} um from either face)."]
+        lines += _md_scan_checks(result["scan_checks"])
     if "findings" in result:
         lines += ["", "## Table 1", ""] + [f"- {t}" for t in result["findings"]]
     write_text(Path(out, f"{NAME}.md"), "\n".join(lines) + "\n")
+
+
+def _md_generators(generators):
+    lines = ["## Generators", ""]
+    for n, g in generators.items():
+        lines.append(f"- `{n}` ({g['kind']}{', sensitivity' if g['sensitivity'] else ''}): {g['forward']}; "
+                     f"right: {', '.join(g['answers'])}; ranges {g['ranges']}")
+    return lines
+
+
+def _md_accuracy(s, goal):
+    """Accuracy per class and per generator against sigma."""
+    first = s[next(iter(s))]
+    lines = ["", "## Accuracy per class against sigma", "",
+             "| sigma | " + " | ".join(first["classes"]) + " | share null/outside |",
+             "|---|" + "---|" * (len(first["classes"]) + 1)]
+    for sig, e in s.items():
+        lines.append(f"| {sig} | " + " | ".join(
+            f"{_fmt(c['accuracy'])} ({c['n']}; visible {_fmt(c['accuracy_visible'])} of {c['n_visible']}, "
+            f"tellable {_fmt(c.get('accuracy_tellable'))} of {c.get('n_tellable')}; "
+            f"mean named set {_fmt(c.get('mean_set_size'))}"
+            + (f"; truth in a named model {_fmt(c['truth_in_a_named_model'])}"
+               if "truth_in_a_named_model" in c else "") + ")" for c in e["classes"].values())
+            + f" | {e['share_null_or_outside']:.2f} |")
+    lines += ["", "## Accuracy per generator against sigma", "",
+              "Accuracy on all data sets (on the visible ones, visibility >= "
+              f"{VISIBLE:g} sigma, in brackets), the median visibility, the share of data sets with an "
+              f"alias and the mean size of the named sets at sigma = {SIGMA_GOAL:g} rad.", "",
+              "| generator | " + " | ".join(s) + " | median visibility [rad] | aliased | mean named set |",
+              "|---|" + "---|" * (len(s) + 3)]
+    for g in first["generators"]:
+        vis = first["generators"][g]["median_visibility"]
+        al = s[goal]["generators"][g]["aliased"] if goal in s else None
+        size = s[goal]["generators"][g].get("mean_set_size") if goal in s else None
+        lines.append(f"| {g} | " + " | ".join(
+            f"{_fmt(e['generators'][g]['accuracy'])} ({_fmt(e['generators'][g].get('accuracy_visible'))})"
+            for e in s.values()) + f" | {vis:.3f} | {_fmt(al)} | {_fmt(size)} |")
+    return lines
+
+
+def _md_strict(at_goal, goal, records):
+    """The strict rule at the goal's sigma, per class and per generator, and its every miss."""
+    lines = ["", f"## Strict rule at sigma = {goal} rad", "",
+             "Right only if no single wrong physical cause is credited (studies.blind_diagnosis."
+             "wrong_physics_credited), beside the package's rule; identified: a measurement artefact "
+             "named or rows flagged.", "",
+             "| class | n | strict | package's rule | strict, tellable | identified | strict misses |",
+             "|---|---|---|---|---|---|---|"]
+    for k, c in at_goal["classes"].items():
+        if c["n"]:
+            lines.append(f"| {k} | {c['n']} | {_fmt(c.get('accuracy_strict'))} | {_fmt(c['accuracy'])} | "
+                         f"{_fmt(c.get('accuracy_strict_tellable'))} | {_fmt(c.get('identified'))} | "
+                         + ", ".join(f"{m} {n}" for m, n in c.get("misses_strict", {}).items()) + " |")
+    lines += ["", "| generator | n | strict | package's rule | identified | its rows flagged | strict misses |",
+              "|---|---|---|---|---|---|---|"]
+    for g, e in at_goal["generators"].items():
+        lines.append(f"| {g} | {e['n']} | {_fmt(e.get('accuracy_strict'))} | {_fmt(e['accuracy'])} | "
+                     f"{_fmt(e.get('identified'))} | {_fmt(e.get('rows_found'))} | "
+                     + ", ".join(f"{m} {n}" for m, n in e.get("misses_strict", {}).items()) + " |")
+    missed = [r for r in records if r["sigma"] == float(goal) and r.get("miss_strict")]
+    lines += ["", f"### Every miss by the strict rule at sigma = {goal} rad", "",
+              "Plausible: whether the diagnosis finds the credited model's parameters in their physical "
+              "ranges (- where it does not say).", "",
+              "| generator | design | rep | verdict | named | credited | plausible | reason |",
+              "|---|---|---|---|---|---|---|---|"]
+    for r in missed:
+        pl = r.get("credited_plausible")
+        lines.append(f"| {r['generator']} | {r['design']} | {r['rep']} | {r['verdict']} | "
+                     f"{', '.join(r['named'])} | {r.get('credited') or '-'} | {'-' if pl is None else pl} | "
+                     f"{r['miss_strict']} |")
+    return lines
+
+
+def _md_misses(at_goal, goal):
+    """The package's rule's misses at the goal's sigma, by reason."""
+    lines = ["", f"## Misses at sigma = {goal} rad by reason (package's rule)", "",
+             "Tellable data sets: null ones; visible effects whose own catalogue form reproduces the "
+             "noise-free angles within sigma (catalogue), or that no catalogue model reproduces within "
+             "sigma (outside). Reasons (studies.blind_diagnosis.miss_reason): " + "; ".join(MISSES) + ".", "",
+             "| generator | n | right | " + " | ".join(MISSES) + " |", "|---|---|---|" + "---|" * len(MISSES)]
+    for g, e in at_goal["generators"].items():
+        m = e.get("misses", {})
+        lines.append(f"| {g} | {e['n']} | {round(e['accuracy'] * e['n'])} | "
+                     + " | ".join(str(m.get(k, 0)) for k in MISSES) + " |")
+    return lines
+
+
+def _md_confusion(confusion, goal):
+    lines = []
+    for key, title in (("verdict", "class x verdict"), ("named", "generator x named model")):
+        m = confusion[key]
+        lines += ["", f"## Confusion at sigma = {goal} rad: {title}", "",
+                  "| | " + " | ".join(m["columns"]) + " |", "|---|" + "---|" * len(m["columns"])]
+        for row, vals in zip(m["rows"], m["matrix"]):
+            lines.append(f"| {row} | " + " | ".join(str(v) for v in vals) + " |")
+    return lines
+
+
+def _md_cost(c):
+    return ["", "## Cost", "", f"`{c['command']}`: {c['rows']} rows in {c['seconds']:.1f} s wall, "
+            f"{c['cpu_seconds']:.1f} s of processor time, peak RSS {c['peak_rss_mib']:.0f} MiB (load "
+            f"{c['load']:.2f} on {c['cores']} cores before the run); verdict {c['verdict']}, best {c['best']}."]
+
+
+def _md_scan_checks(sc):
+    lines = ["", "## Is the scan the part?", "", "| case | same part | matches | relative residual | coverage | "
+             "factor | simulations | s |", "|---|---|---|---|---|---|---|---|"]
+    for r in sc["cases"]:
+        lines.append(f"| {r['case']} | {r['same_part']} | {r['matches']} | {r['relative_residual']:.3f} | "
+                     f"{r['coverage']:.2f} | {r['factor']:.2f} | {r['simulations']} | {r['seconds']:.1f} |")
+    f = sc["exact_copy"]
+    lines += ["", f"Exact copy of the 1.6 mm hinge's {f['n_vertices']} vertices (nz = 2) through ICP: RMS "
+              f"{1000 * f['icp_rms_all_vertices_mm']:.1f} um; its {f['n_surface_vertices']} surface vertices "
+              f"alone: {f['icp_rms_surface_vertices_mm']:.2g} mm (the others lie inside the film, "
+              f"{1000 * f['half_thickness_mm']:.0f} um from either face)."]
+    return lines
 
 
 def plot(result, out):

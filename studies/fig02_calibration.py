@@ -38,29 +38,57 @@ def run(resolution="default", out=None, data=None):
     n_boot = BOOT[resolution]
     fits = {m: fit_reading(tests, m, n_boot=n_boot) for m in READINGS}
     core = gdfe.Calibration.fit(tests, n_boot=n_boot)
-
-    # the paper's reading: K = 0.3706 applied to the printed regressor
-    x3 = regressor("eq1", L, d, h)
-    pred_paper = PAPER_K * x3
-    r2_paper, _, rmse_paper, _ = fit_quality(y, pred_paper)
-    paper_on_data = {"K": PAPER_K, "r2": r2_paper, "rmse": rmse_paper, "alpha_pred": pred_paper.tolist(),
-                     "max_alpha_pred": float(pred_paper.max())}
-    cal = gdfe.Calibration(K=PAPER_K, h=H)
-    d_min = cal.d_min()
+    paper_on_data, pred_paper = _paper_on_data(tests)
+    d_min = gdfe.Calibration(K=PAPER_K, h=H).d_min()
     thin = d <= d_min
     first_thin = int(np.argmin(d))
+    R_tests = 1.0 - y * h / L  # Eq. 2 applied to every test: the contraction ratio each test implies
+    near = np.abs(d - D_FIG6) <= 0.035
+    readings = _readings(fits, d, h)
+    result = {
+        "study": NAME, "figure": "Fig. 2 / Eq. 1-3", "title": "calibration of K from Table 1",
+        "resolution": resolution, "n_boot": n_boot, "headlines": _headlines(fits, readings, thin, d_min),
+        "converged": True,
+        "summary": _summary(fits, readings, tests, paper_on_data, pred_paper, d_min, R_tests[near]),
+        "data": {"L_mm": L.tolist(), "d_mm": d.tolist(), "h_mm": h.tolist(), "alpha_rad": y.tolist()},
+        "fits": {m: f.as_dict() for m, f in fits.items()},
+        "core_fit_eq1": {"K": core.K, "r2": core.r2, "K_ci95": list(core.K_ci)},
+        "with_intercept": _with_intercept(tests),
+        "paper_K_on_data": paper_on_data,
+        "eq3_paper": {"d_min_mm": d_min, "tests_R_le_0": np.nonzero(thin)[0].tolist(),
+                      "thinnest_test": {"d_mm": float(d[first_thin]), "L_mm": float(L[first_thin]),
+                                        "alpha_measured": float(y[first_thin]),
+                                        "alpha_eq1": float(pred_paper[first_thin])}},
+        "readings": readings,
+        "R_from_each_test": R_tests.tolist(),
+        "R_tests_near_d033": {"d_mm": d[near].tolist(), "R": R_tests[near].tolist()},
+        "fig6_paper_simulated": list(PAPER_SIM),
+    }
+    return finish(result, out, plot)
 
-    # with an intercept (the paper says "a best-fit straight line")
-    intercept = {}
+
+def _paper_on_data(tests):
+    """The paper's reading, K = 0.3706 applied to the printed regressor: its fit to the tests and
+    its predictions."""
+    pred = PAPER_K * regressor("eq1", tests.L, tests.d, tests.h)
+    r2, _, rmse, _ = fit_quality(tests.alpha, pred)
+    return {"K": PAPER_K, "r2": r2, "rmse": rmse, "alpha_pred": pred.tolist(),
+            "max_alpha_pred": float(pred.max())}, pred
+
+
+def _with_intercept(tests):
+    """Eq. 1's two regressors fitted with an intercept (the paper says "a best-fit straight line")."""
+    out = {}
     for m in ("eq1", "eq1-d1"):
-        x = regressor(m, L, d, h)
-        slope, icpt = np.polyfit(x, y, 1)
-        intercept[m] = {"slope": float(slope), "intercept": float(icpt),
-                        "r2": fit_quality(y, slope * x + icpt)[0]}
+        x = regressor(m, tests.L, tests.d, tests.h)
+        slope, icpt = np.polyfit(x, tests.alpha, 1)
+        out[m] = {"slope": float(slope), "intercept": float(icpt), "r2": fit_quality(tests.alpha, slope * x + icpt)[0]}
+    return out
 
-    # Eq. 2 applied to every test: the contraction ratio each test implies
-    R_tests = 1.0 - y * h / L
 
+def _readings(fits, d, h):
+    """What the paper's reading and each refit say of Figure 6: R at d = 0.33 mm, its folds, the
+    thinnest coat with R > 0 and the tests with R <= 0."""
     readings = []
     rows = [("paper (K = 0.3706, d^3)", "eq1", PAPER_K, 1.5)] + [
         (f"refit {m}", m, fits[m].K, fits[m].p) for m in READINGS]
@@ -71,10 +99,12 @@ def run(resolution="default", out=None, data=None):
                          "fig6_alpha": [float((1 - R) * Lf / H) for Lf in FIG6_L],
                          "d_min_mm": float(f.d_min(H)),
                          "tests_with_R_le_0": int((f.ratio(d, h) <= 0).sum())})
-    near = np.abs(d - D_FIG6) <= 0.035
+    return readings
 
+
+def _headlines(fits, readings, thin, d_min):
     e1, e1d = fits["eq1"], fits["eq1-d1"]
-    hl = [
+    return [
         headline("K, regressor sqrt(h/d)*L (eq1-d1)", e1d.K, PAPER_K, 0.01, "rel",
                  note="the paper's K is reproduced with d to the first power"),
         headline("R2, regressor sqrt(h/d)*L (eq1-d1)", e1d.r2, PAPER_R2, 0.02, "abs"),
@@ -88,12 +118,18 @@ def run(resolution="default", out=None, data=None):
         headline("tests with R <= 0 by Eq. 3 (K = 0.3706)", int(thin.sum()), 0, None, "eq", expect=False,
                  note=f"d < {d_min:.4f} mm gives R <= 0"),
     ]
-    converged = True
-    summary = {
+
+
+def _summary(fits, readings, tests, paper_on_data, pred_paper, d_min, R_near):
+    e1, e1d, power = fits["eq1"], fits["eq1-d1"], fits["power"]
+    d, y = tests.d, tests.alpha
+    first_thin = int(np.argmin(d))
+    thin = int((d <= d_min).sum())
+    return {
         "paper": "K = 0.3706, R^2 around 0.8 (fit of alpha against sqrt(h/d^3) L); R = 0.7 for d = 0.33 mm",
         "ours": (f"printed regressor: K = {e1.K:.4f} (95 % CI {e1.K_ci[0]:.4f}-{e1.K_ci[1]:.4f}), R^2 = {e1.r2:.3f}; "
-                 f"sqrt(h/d) L: K = {e1d.K:.4f}, R^2 = {e1d.r2:.3f}; power: alpha ~ d^-{fits['power'].p:.2f}, "
-                 f"R^2 = {fits['power'].r2:.3f}"),
+                 f"sqrt(h/d) L: K = {e1d.K:.4f}, R^2 = {e1d.r2:.3f}; power: alpha ~ d^-{power.p:.2f}, "
+                 f"R^2 = {power.r2:.3f}"),
         "verdict": "reproduced only with d to the first power; Eq. 1 as printed does not reproduce K or R^2",
         "discrepancy": (
             f"Fitting the printed regressor sqrt(h/d^3) L through the origin gives K = {e1.K:.4f}, R^2 = {e1.r2:.3f}; "
@@ -102,33 +138,14 @@ def run(resolution="default", out=None, data=None):
             f"with K = 0.3706. That combination predicts {pred_paper[first_thin]:.1f} rad for the d = "
             f"{d[first_thin]:.2f} mm test (measured {y[first_thin]:.2f}), up to {paper_on_data['max_alpha_pred']:.1f} "
             f"rad for another (R^2 = {paper_on_data['r2']:.0f} on the data), and R <= 0 for d < {d_min:.4f} mm "
-            f"({int(thin.sum())} of {y.size} tests; d = 0.15 gives R = "
+            f"({thin} of {y.size} tests; d = 0.15 gives R = "
             f"{1 - PAPER_K * (H / 0.15) ** 1.5:.3f}). The R = 0.7 of Fig. 6 (Eq. 3: {readings[0]['R_d033']:.4f}) "
             f"rests on it; a consistent reading gives R(0.33) = {readings[1]['R_d033']:.3f} (eq1 refit), "
             f"{readings[2]['R_d033']:.3f} (d^1) or {readings[3]['R_d033']:.3f} (power), and the tests with "
-            f"d = 0.31-0.36 mm imply R = {R_tests[near].min():.2f}-{R_tests[near].max():.2f} by Eq. 2. "
-            f"The fitted exponent of d is {fits['power'].p:.2f} (95 % CI {fits['power'].p_ci[0]:.2f}-"
-            f"{fits['power'].p_ci[1]:.2f}), not 1.5."),
+            f"d = 0.31-0.36 mm imply R = {R_near.min():.2f}-{R_near.max():.2f} by Eq. 2. "
+            f"The fitted exponent of d is {power.p:.2f} (95 % CI {power.p_ci[0]:.2f}-"
+            f"{power.p_ci[1]:.2f}), not 1.5."),
     }
-    result = {
-        "study": NAME, "figure": "Fig. 2 / Eq. 1-3", "title": "calibration of K from Table 1",
-        "resolution": resolution, "n_boot": n_boot, "headlines": hl, "converged": converged,
-        "summary": summary,
-        "data": {"L_mm": L.tolist(), "d_mm": d.tolist(), "h_mm": h.tolist(), "alpha_rad": y.tolist()},
-        "fits": {m: f.as_dict() for m, f in fits.items()},
-        "core_fit_eq1": {"K": core.K, "r2": core.r2, "K_ci95": list(core.K_ci)},
-        "with_intercept": intercept,
-        "paper_K_on_data": paper_on_data,
-        "eq3_paper": {"d_min_mm": d_min, "tests_R_le_0": np.nonzero(thin)[0].tolist(),
-                      "thinnest_test": {"d_mm": float(d[first_thin]), "L_mm": float(L[first_thin]),
-                                        "alpha_measured": float(y[first_thin]),
-                                        "alpha_eq1": float(pred_paper[first_thin])}},
-        "readings": readings,
-        "R_from_each_test": R_tests.tolist(),
-        "R_tests_near_d033": {"d_mm": d[near].tolist(), "R": R_tests[near].tolist()},
-        "fig6_paper_simulated": list(PAPER_SIM),
-    }
-    return finish(result, out, plot)
 
 
 def plot(result, out):

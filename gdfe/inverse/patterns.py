@@ -200,6 +200,30 @@ def strip_pattern(couples, h=DEFAULT_H, R=None, cell=None, w_min=None, rounding=
     """
     couples = as_couples(couples)
     h = check_positive("h", h)
+    model, R, d = _planning_ratio(model, R, d, h)
+    rounding = check_choice("rounding", rounding, ROUNDINGS)
+    w_min, cell, b = _printer_grid(w_min, cell)
+    geometric = model is not None and model.geometric
+    material, segment, L_c, L_cp, blocks, clamped = _paper_rule_columns(couples, h, R, cell, b, rounding,
+                                                                        clamp, geometric)
+    k = len(couples)
+    angle = np.array([c.angle for c in couples])
+    angle_p = np.sign(angle) * (1.0 - R) * L_cp / h
+    if geometric:
+        material, blocks = _refine_for_model(material, segment, couples, blocks, b, model, R, h, cell)
+        L_cp = np.array([float((material[segment == i] != int(Material.RIGID)).sum() * cell)
+                         for i in range(k)])
+        angle_p = _model_turns(material, segment, k, model, R, h, cell)
+        clamped = _model_clamps(material, segment, couples, model, R, h, cell, d, clamp)
+    return StripPattern(material=material, cell=cell, segment=segment,
+                        couples=couples, h=h, R=R, w_min=w_min, rounding=rounding, L_c=L_c,
+                        L_c_printed=L_cp, blocks=blocks, angle=angle, angle_printed=angle_p,
+                        clamped=clamped, model=model, d=d)
+
+
+def _planning_ratio(model, R, d, h):
+    """The checked model, the contraction ratio the strip is planned with (``R``, or the model's
+    at ``d``; the paper's 0.7 without either) and the checked ``d``."""
     model = as_model(model)
     if model is not None:
         if R is not None:
@@ -208,8 +232,11 @@ def strip_pattern(couples, h=DEFAULT_H, R=None, cell=None, w_min=None, rounding=
             raise GdfeError("d: expected the passive thickness [mm] the model gives R from")
         d = float(check_positive("d", d))
         R = float(model.ratio(d, h))
-    R = check_open_ratio(0.7 if R is None else R)
-    rounding = check_choice("rounding", rounding, ROUNDINGS)
+    return model, check_open_ratio(0.7 if R is None else R), d
+
+
+def _printer_grid(w_min, cell):
+    """The checked printer resolution ``w_min``, the column width and the columns of one block."""
     if w_min is not None:
         w_min = check_number("w_min", w_min, minimum=0.0, include_minimum=False,
                              what="a positive printer resolution in mm")
@@ -217,25 +244,30 @@ def strip_pattern(couples, h=DEFAULT_H, R=None, cell=None, w_min=None, rounding=
         cell = 0.125 if w_min is None else w_min / math.ceil(w_min / 0.125 - 1e-9)
     cell = check_positive("cell", cell)
     if w_min is None:
-        b = 1
-    else:
-        b = int(round(w_min / cell))
-        if b < 1 or abs(b * cell - w_min) > 1e-6 * w_min:
-            raise GdfeError(f"w_min: expected a whole number of cells ({cell:g} mm), got {w_min:g} mm")
-    w = b * cell
-    materials, segments = [], []
+        return w_min, cell, 1
+    b = int(round(w_min / cell))
+    if b < 1 or abs(b * cell - w_min) > 1e-6 * w_min:
+        raise GdfeError(f"w_min: expected a whole number of cells ({cell:g} mm), got {w_min:g} mm")
+    return w_min, cell, b
+
+
+def _paper_rule_columns(couples, h, R, cell, b, rounding, clamp, geometric):
+    """Each couple's columns by the paper's rule (its blocks spread uniformly, :func:`_blocks`).
+
+    Returns the columns' materials and couples, and per couple the contracting length asked and
+    printed, the blocks and whether it is clamped. A couple tighter than the film folds is an
+    error unless ``clamp``, or a geometric model, which decides it later.
+    """
     k = len(couples)
-    L_c = np.zeros(k)
-    L_cp = np.zeros(k)
-    blocks = np.zeros(k, int)
-    clamped = np.zeros(k, bool)
-    turn_per_block = w * (1.0 - R) / h
-    geometric = model is not None and model.geometric
+    materials, segments = [], []
+    L_c, L_cp = np.zeros(k), np.zeros(k)
+    blocks, clamped = np.zeros(k, int), np.zeros(k, bool)
+    turn_per_block = b * cell * (1.0 - R) / h
     debt = 0.0  # target minus printed accumulated turn [rad] ("carry")
     for i, c in enumerate(couples):
         n = max(1, int(round(c.L / cell)))
         L_c[i] = abs(c.angle) * h / (1.0 - R)
-        want = L_c[i] / w
+        want = L_c[i] / (b * cell)
         if rounding == "carry" and c.angle != 0:
             want = max(0.0, math.copysign(1.0, c.angle) * (c.angle + debt)) / turn_per_block
         nb = int(_ROUNDING[rounding](want - 1e-12)) if want > 0 else 0
@@ -261,32 +293,28 @@ def strip_pattern(couples, h=DEFAULT_H, R=None, cell=None, w_min=None, rounding=
         debt += c.angle - math.copysign(1.0, c.angle) * (1.0 - R) * L_cp[i] / h
         materials.append(col)
         segments.append(np.full(n, i))
+    return np.concatenate(materials), np.concatenate(segments), L_c, L_cp, blocks, clamped
+
+
+def _model_clamps(material, segment, couples, model, R, h, cell, d, clamp):
+    """The couples that turn less than asked even with all their columns contracting: this model
+    cannot fold them at this ``d`` (an overshoot is the model's block quantum, not a clamp). The
+    first is an error unless ``clamp``."""
+    k = len(couples)
     angle = np.array([c.angle for c in couples])
-    angle_p = np.sign(angle) * (1.0 - R) * L_cp / h
-    material, segment = np.concatenate(materials), np.concatenate(segments)
-    if geometric:
-        material, blocks = _refine_for_model(material, segment, couples, blocks, b, model, R, h, cell)
-        L_cp = np.array([float((material[segment == i] != int(Material.RIGID)).sum() * cell)
-                         for i in range(k)])
-        angle_p = _model_turns(material, segment, k, model, R, h, cell)
-        # a couple that turns less than asked even with all its columns contracting cannot be folded
-        # by this model at this d (an overshoot is the model's block quantum, not a clamp)
-        most = np.zeros(k)
-        for i, cp in enumerate(couples):
-            full = material.copy()
-            full[segment == i] = int(Material.CONTRACT_TOP if cp.curvature > 0 else Material.CONTRACT_BOTTOM)
-            most[i] = abs(_model_turns(full, segment, k, model, R, h, cell)[i]) if cp.angle != 0 else 0.0
-        clamped = np.abs(angle) > most + 1e-9
-        if clamped.any() and not clamp:
-            i = int(np.nonzero(clamped)[0][0])
-            raise GdfeError(f"couples[{i}]: radius {abs(couples[i].r):g} mm turns by {abs(angle[i]):.4g} rad, but the "
-                            f"most model {model.name!r} gives it at d = {d:g} mm is {most[i]:.4g} rad "
-                            f"(its contraction there is {1 - R:.4g}: the film folds no tighter than "
-                            f"h/c = {h / (1 - R):.4g} mm); print a thinner coat, or pass clamp=True")
-    return StripPattern(material=material, cell=cell, segment=segment,
-                        couples=couples, h=h, R=R, w_min=w_min, rounding=rounding, L_c=L_c,
-                        L_c_printed=L_cp, blocks=blocks, angle=angle, angle_printed=angle_p,
-                        clamped=clamped, model=model, d=d)
+    most = np.zeros(k)
+    for i, cp in enumerate(couples):
+        full = material.copy()
+        full[segment == i] = int(Material.CONTRACT_TOP if cp.curvature > 0 else Material.CONTRACT_BOTTOM)
+        most[i] = abs(_model_turns(full, segment, k, model, R, h, cell)[i]) if cp.angle != 0 else 0.0
+    clamped = np.abs(angle) > most + 1e-9
+    if clamped.any() and not clamp:
+        i = int(np.nonzero(clamped)[0][0])
+        raise GdfeError(f"couples[{i}]: radius {abs(couples[i].r):g} mm turns by {abs(angle[i]):.4g} rad, but the "
+                        f"most model {model.name!r} gives it at d = {d:g} mm is {most[i]:.4g} rad "
+                        f"(its contraction there is {1 - R:.4g}: the film folds no tighter than "
+                        f"h/c = {h / (1 - R):.4g} mm); print a thinner coat, or pass clamp=True")
+    return clamped
 
 
 def _blocks(n, nb, b, code):
