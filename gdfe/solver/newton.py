@@ -1447,6 +1447,66 @@ def _solve_free(steps, F):
     return out
 
 
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Move:
+    """What one Newton iteration did (:func:`_damped_step`): the new iterate and damping, and its record."""
+
+    x: typing.Any
+    mu: float
+    kind: str
+    moved: float
+    alpha: typing.Optional[float]
+    damping: typing.Optional[float]
+    agreement: typing.Optional[float]
+    tries: int
+    cg_iterations: int
+
+
+def _damped_step(steps, x, plain, Vp, activation, contact, grad, direction, mu, alphas, estimate, res,
+                 vanishing_damping, timed, it):
+    """One iteration of :func:`solve_newton` from its Newton system: the damped step that lowers the energy.
+
+    The step at damping ``mu`` is tried at the lengths ``alphas`` (:func:`_line_search`); the first
+    that lowers the energy is taken and the damping follows (:func:`_next_damping`); when none does,
+    ``mu`` grows eightfold and the step is recomputed, 20 times at most, and then the plain step
+    is taken where it lowers the energy (``kind`` "plain", else "none"). ``estimate`` is told the
+    step's length.
+    """
+    scale = steps.design.h
+    before = x
+    cg_here = 0
+    for tries in range(1, 21):
+        step, k = timed(direction, mu)
+        cg_here += k
+        taken, trial, trials = None, None, ()
+        if step is not None and np.any(step):
+            taken, trial, trials = _line_search(steps, x, step, activation, alphas, contact)
+        if taken is not None:
+            x = trial
+            moved = float(np.abs(deformation(taken * step, x.V)).max() / scale)
+            estimate.step(moved, full=taken == 1.0)
+            # a step cut short by collision detection, not by the energy, keeps the damping
+            full = taken == 1.0 or (contact is not None and taken == trials[0])
+            predicted, fell = _predicted_fall(grad, step, taken), before.E - x.E
+            agreement = fell / predicted if predicted > 0.0 else None
+            log.debug("newton %d: step %.3e h (alpha %g), model agreement %.3f", it, moved, taken,
+                      np.nan if agreement is None else agreement)
+            fast = (vanishing_damping and taken == 1.0 and contact is None and predicted > 0.0
+                    and fell >= MODEL_AGREEMENT * predicted)
+            return _Move(x=x, mu=_next_damping(mu, full, fast, res, vanishing_damping, contact=contact is not None),
+                         kind="newton", moved=moved, alpha=taken, damping=mu, agreement=agreement, tries=tries,
+                         cg_iterations=cg_here)
+        mu *= 8.0
+    # no descent even with heavy damping: take the plain step
+    after = _plain_fallback(steps, x, plain, Vp, activation, contact)
+    if after is None:
+        return _Move(x=x, mu=mu, kind="none", moved=0.0, alpha=None, damping=None, agreement=None, tries=tries,
+                     cg_iterations=cg_here)
+    estimate.plain(res)
+    return _Move(x=after, mu=mu, kind="plain", moved=float(np.abs(deformation(after.V - x.V, after.V)).max() / scale),
+                 alpha=None, damping=None, agreement=None, tries=tries, cg_iterations=cg_here)
+
+
 def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,), contact=None, on_drift="warn",
                  monitor=None, vanishing_damping=False, extrapolate=None):
     """Damped Newton on the rotation-reduced energy; the outer loop of both Newton methods.
@@ -1571,43 +1631,15 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
         res = plain.res
         if ends(res):
             break
-        before = x
         grad, direction = timed(_newton_direction, steps, directions, x, plain, res, contact, estimate.error, target)
-        cg_here = 0
-        for tries in range(1, 21):
-            step, k = timed(direction, mu)
-            cg_here += k
-            taken, trial, trials = None, None, ()
-            if step is not None and np.any(step):
-                taken, trial, trials = _line_search(steps, x, step, activation, alphas, contact)
-            if taken is not None:
-                x = trial
-                moved = float(np.abs(deformation(taken * step, x.V)).max() / scale)
-                estimate.step(moved, full=taken == 1.0)
-                # a step cut short by collision detection, not by the energy, keeps the damping
-                full = taken == 1.0 or (contact is not None and taken == trials[0])
-                predicted, fell = _predicted_fall(grad, step, taken), before.E - x.E
-                agreement = fell / predicted if predicted > 0.0 else None
-                log.debug("newton %d: step %.3e h (alpha %g), model agreement %.3f", it, moved, taken,
-                          np.nan if agreement is None else agreement)
-                fast = (vanishing_damping and taken == 1.0 and contact is None and predicted > 0.0
-                        and fell >= MODEL_AGREEMENT * predicted)
-                kind, taken_with = "newton", mu
-                mu = _next_damping(mu, full, fast, res, vanishing_damping, contact=contact is not None)
-                break
-            mu *= 8.0
-        else:  # no descent even with heavy damping: take the plain step
-            after = _plain_fallback(steps, x, plain, Vp, activation, contact)
-            kind, moved, taken, taken_with, agreement = "none", 0.0, None, None, None
-            if after is not None:
-                kind, moved = "plain", float(np.abs(deformation(after.V - x.V, after.V)).max() / scale)
-                x = after
-                estimate.plain(res)
-        record.append(NewtonStep(iteration=it, residual_h=res, kind=kind,
-                                 length_h=moved, alpha=taken, damping=taken_with, tries=tries,
-                                 cg_iterations=cg_here, model_agreement=agreement, energy=float(x.E),
+        move = _damped_step(steps, x, plain, Vp, activation, contact, grad, direction, mu, alphas, estimate, res,
+                            vanishing_damping, timed, it)
+        x, mu = move.x, move.mu
+        record.append(NewtonStep(iteration=it, residual_h=res, kind=move.kind,
+                                 length_h=move.moved, alpha=move.alpha, damping=move.damping, tries=move.tries,
+                                 cg_iterations=move.cg_iterations, model_agreement=move.agreement, energy=float(x.E),
                                  estimate_h=float(estimate.error), seconds=time.perf_counter() - t_it))
-        if kind == "none":  # with contact, no step lowers the energy: stopped, not converged
+        if move.kind == "none":  # with contact, no step lowers the energy: stopped, not converged
             log.warning("newton with contact: no step lowers the energy at residual %.3e", res)
             break
         log.debug("newton %d: residual %.3e, error estimate %.3e, energy %.6e, mu %.1e",
