@@ -267,21 +267,44 @@ def svg_masks(path, pixel, by="layer", colours=None):
     -------
     SvgMasks
     """
-    import svgelements as se
-
     path = check_file("svg", path, suffixes=(".svg",), what="SVG drawing")
     pixel = check_positive("pixel", pixel)
     check_choice("by", by, ("layer", "colour"))
-    colour_face = None
-    if by == "colour":
-        table = dict(FACE_COLOURS if colours is None else colours)
-        for face in table:
-            check_choice("colours", face, FACES)
-        colour_face = {str(se.Color(v).hex)[:7].lower(): f for f, v in table.items()}
+    colour_face = _colour_faces(colours) if by == "colour" else None
     svg, root = _prepare(path, by)
     W, H, mm = _page(root, svg, path.name)
-    step = pixel / mm / 10.0
-    polys = {f: [] for f in FACES}  # face -> list of (polygons [mm, y down], rule)
+    polys, counts = _face_shapes(svg, path.name, by, colour_face, pixel / mm / 10.0, mm)
+    from gdfe.resources import check_grid
+
+    # before any grid is made: the page's size on the printer's grid
+    check_grid(f"{path.name}: pixel", (H / pixel) * (W / pixel), (W, H), pixel, SVG_BYTES_PER_PIXEL)
+    film, top, bottom = _face_masks(polys, (W, H), pixel, path.name)
+    ii, jj = np.nonzero(film)
+    sl = (slice(ii.min(), ii.max() + 1), slice(jj.min(), jj.max() + 1))
+    outside = (top | bottom) & ~film
+    if outside.any():
+        log.info("%s: %d coated pixels lie outside the film and are left out", path.name, int(outside.sum()))
+    return SvgMasks(top=(top & film)[sl], bottom=(bottom & film)[sl], film=film[sl], pixel=pixel,
+                    origin=np.array([ii.min() * pixel, jj.min() * pixel]), shapes=counts)
+
+
+def _colour_faces(colours):
+    """Fill colour (``#rrggbb``, lower case) -> face, from ``colours`` (face -> colour; default
+    :data:`FACE_COLOURS`)."""
+    import svgelements as se
+
+    table = dict(FACE_COLOURS if colours is None else colours)
+    for face in table:
+        check_choice("colours", face, FACES)
+    return {str(se.Color(v).hex)[:7].lower(): f for f, v in table.items()}
+
+
+def _face_shapes(svg, name, by, colour_face, step, mm):
+    """The drawing's filled shapes by face: face -> ``[(polygons [mm, y down], fill rule, where), ...]``,
+    and how many shapes each face has. A filled shape of no face is an error naming it."""
+    import svgelements as se
+
+    polys = {f: [] for f in FACES}
     counts = dict.fromkeys(FACES, 0)
     for el in svg.elements():
         if isinstance(el, se.Text):
@@ -295,29 +318,34 @@ def svg_masks(path, pixel, by="layer", colours=None):
         if by == "layer":
             face = el.values.get("gdfe-face")
             if face is None:
-                raise GdfeError(f"{path.name}: {where}: a filled shape outside any group named "
+                raise GdfeError(f"{name}: {where}: a filled shape outside any group named "
                                 f"{', '.join(FACES)} (by id or Inkscape layer name); hide or delete it, "
                                 "or tell faces apart by colour")
         else:
             key = str(fill.hex)[:7].lower()
             face = colour_face.get(key)
             if face is None:
-                raise GdfeError(f"{path.name}: {where}: fill colour {key} is none of the face colours "
+                raise GdfeError(f"{name}: {where}: fill colour {key} is none of the face colours "
                                 + ", ".join(f"{f} {c}" for c, f in colour_face.items()))
         rule = str(el.values.get("fill-rule", "nonzero")).strip().lower()
         rule = rule if rule in ("nonzero", "evenodd") else "nonzero"
         sub = [P * mm for P in _subpaths(el, step)]
         if any(not np.isfinite(P).all() for P in sub):
-            raise GdfeError(f"{path.name}: {where}: expected finite coordinates, got a shape whose points are not "
+            raise GdfeError(f"{name}: {where}: expected finite coordinates, got a shape whose points are not "
                             f"numbers (NaN or infinite: check its x, y, width, height, points, d or transform)")
         if sub:
             polys[face].append((sub, rule, where))
             counts[face] += 1
-    from gdfe.fabrication.raster import fill_polygons
-    from gdfe.resources import check_grid
+    return polys, counts
 
-    # before any grid is made: the page's size on the printer's grid
-    check_grid(f"{path.name}: pixel", (H / pixel) * (W / pixel), (W, H), pixel, SVG_BYTES_PER_PIXEL)
+
+def _face_masks(polys, page, pixel, name):
+    """The film's and the faces' masks on the page's grid of ``pixel`` (``both`` coats top and bottom),
+    in the grid's order (j up); an error where the film or the coat covers no pixel, a warning for
+    each shape that covers none."""
+    from gdfe.fabrication.raster import fill_polygons
+
+    W, H = page
     rows, cols = int(math.ceil(H / pixel - 1e-6)), int(math.ceil(W / pixel - 1e-6))  # page sizes carry round-off
     empty = []
 
@@ -334,23 +362,17 @@ def svg_masks(path, pixel, by="layer", colours=None):
     both = raster("both")
     top, bottom = raster("top") | both, raster("bottom") | both
     if not film.any():
-        raise GdfeError(f"{path.name}: the film group covers no pixel at {pixel:g} mm")
+        raise GdfeError(f"{name}: the film group covers no pixel at {pixel:g} mm")
     if not (top | bottom).any():
-        raise GdfeError(f"{path.name}: no filled shape in a top, bottom or both group covers a pixel at "
+        raise GdfeError(f"{name}: no filled shape in a top, bottom or both group covers a pixel at "
                         f"{pixel:g} mm: nothing is coated")
     if empty:
-        log.warning("%s: %d filled shape(s) cover no pixel at %g mm and are left out (%s%s)", path.name, len(empty),
+        log.warning("%s: %d filled shape(s) cover no pixel at %g mm and are left out (%s%s)", name, len(empty),
                     pixel, ", ".join(empty[:3]), ", ..." if len(empty) > 3 else "")
     if not ((top | bottom) & film).any():
-        raise GdfeError(f"{path.name}: no coated pixel lies on the film (the film group covers none of the top, "
+        raise GdfeError(f"{name}: no coated pixel lies on the film (the film group covers none of the top, "
                         f"bottom or both shapes at {pixel:g} mm): nothing on the film is coated")
-    ii, jj = np.nonzero(film)
-    sl = (slice(ii.min(), ii.max() + 1), slice(jj.min(), jj.max() + 1))
-    outside = (top | bottom) & ~film
-    if outside.any():
-        log.info("%s: %d coated pixels lie outside the film and are left out", path.name, int(outside.sum()))
-    return SvgMasks(top=(top & film)[sl], bottom=(bottom & film)[sl], film=film[sl], pixel=pixel,
-                    origin=np.array([ii.min() * pixel, jj.min() * pixel]), shapes=counts)
+    return film, top, bottom
 
 
 def svg_polyline(path, element_id=None, spacing=0.2):
