@@ -54,6 +54,36 @@ def run(args):
 def _run(args, folder):
     import gdfe
 
+    model = _checked_model(args)
+    n_draws = check_uncertainty(args, model)
+    K = gdfe.PAPER_K if args.K is None else args.K
+    design = _design(args, K, model)
+    res = solve(design, args)
+    out = _record(args, design, res, K, model)
+    ens = None
+    if n_draws is not None:
+        ens = run_ensemble(design, model, n_draws, args, res, _hinge_measure, ["hinge"], process=args.process)
+        out["uncertainty"] = ens.as_dict()
+    if folder is not None:
+        alpha = out["fold_angle_rad"]
+        out["title"] = f"hinge L={args.length:g} mm: fold angle {shown(alpha, 4):.4f} rad ({shown(math.degrees(alpha), 1):.1f} deg)"
+        with folder:
+            folder.status.update(converged=bool(res.converged), status=status_word(res))
+            out["files"] = write_outputs(res, args.out, "hinge", out, progress=progress_mode(args),
+                                         command="hinge")
+            if ens is not None:
+                out["files"].update(write_ensemble(ens, res, args.out, "hinge", out["title"]))
+    if "panel_lengthened_from_mm" in design.meta:  # the model's contraction reached through the panels
+        out["panel_lengthened_from_mm"] = design.meta["panel_lengthened_from_mm"]
+        out["panel_reach_mm"] = design.meta["panel_reach_mm"]
+    emit(out, args.json, _text(args, design, res, out, model, ens), command="hinge")
+    return exit_status(res, allow_penetration=args.allow_penetration)
+
+
+def _checked_model(args):
+    """The deformation model of ``--model`` (or None), once ``--d`` and ``--R`` are checked."""
+    import gdfe
+
     if args.d is None and args.R is None:
         raise GdfeError("give --d (passive thickness, mm) or --R (contraction ratio)")
     if args.d is not None and args.R is not None:
@@ -63,18 +93,28 @@ def _run(args, folder):
     model = gdfe.load_model(args.model) if args.model is not None else None
     if model is not None and args.d is None:
         raise GdfeError("--model: expected --d too (the model gives R from the passive thickness)")
-    n_draws = check_uncertainty(args, model)
-    K = gdfe.PAPER_K if args.K is None else args.K
+    return model
+
+
+def _design(args, K, model):
+    """The hinge specimen of the arguments; a bad cell size is named as ``--cells``."""
+    import gdfe
+
     cell_size = None if args.cells is None else args.length / check_int("--cells", args.cells)
     try:
-        design = gdfe.hinge(args.length, d=args.d, h=args.h, K=K, R=args.R, width=args.width,
-                            panel_length=args.panel_length, cell_size=cell_size, nz=args.nz,
-                            isotropy=args.isotropy, model=model, process=args.process)
+        return gdfe.hinge(args.length, d=args.d, h=args.h, K=K, R=args.R, width=args.width,
+                          panel_length=args.panel_length, cell_size=cell_size, nz=args.nz,
+                          isotropy=args.isotropy, model=model, process=args.process)
     except GdfeError as exc:
         if cell_size is None or not str(exc).startswith("cell_size: "):
             raise
         raise GdfeError(f"--cells {args.cells}: {str(exc)[len('cell_size: '):]}") from None
-    res = solve(design, args)
+
+
+def _record(args, design, res, K, model):
+    """The fold angle beside Eq. 1, Eq. 2 and the model's closed form, and the solve's record."""
+    import gdfe
+
     alpha = gdfe.fold_angle(res)
     R = float(design.meta["R"])
     out = {
@@ -97,33 +137,23 @@ def _run(args, folder):
         out["model"] = model.as_dict()
         out["model_file"] = _model_file(args.model)
         out["fold_angle_model_rad"] = float(model.hinge_angle(args.length, args.d, args.h, args.process))
-    if model is not None:
         ref = out["fold_angle_model_rad"]
     else:
         ref = out["fold_angle_eq1_rad"] if out["fold_angle_eq1_rad"] is not None else out["fold_angle_eq2_rad"]
     out["error_rad"] = alpha - ref
     out.update(contact_fields(res))
-    ens = None
-    if n_draws is not None:
-        ens = run_ensemble(design, model, n_draws, args, res, _hinge_measure, ["hinge"], process=args.process)
-        out["uncertainty"] = ens.as_dict()
-    if folder is not None:
-        out["title"] = f"hinge L={args.length:g} mm: fold angle {shown(alpha, 4):.4f} rad ({shown(math.degrees(alpha), 1):.1f} deg)"
-        with folder:
-            folder.status.update(converged=bool(res.converged), status=status_word(res))
-            out["files"] = write_outputs(res, args.out, "hinge", out, progress=progress_mode(args),
-                                         command="hinge")
-            if ens is not None:
-                out["files"].update(write_ensemble(ens, res, args.out, "hinge", out["title"]))
+    return out
+
+
+def _text(args, design, res, out, model, ens):
+    alpha = out["fold_angle_rad"]
     lengthened = ""
-    if "panel_lengthened_from_mm" in design.meta:  # the model's contraction reached through the panels
-        out["panel_lengthened_from_mm"] = design.meta["panel_lengthened_from_mm"]
-        out["panel_reach_mm"] = design.meta["panel_reach_mm"]
+    if "panel_lengthened_from_mm" in out:
         lengthened = (f"  panels lengthened to {out['panel_length_mm']:.3g} mm: the model's contraction reaches "
                       f"{out['panel_reach_mm']:.3g} mm into them; the fold is measured on their outer "
                       f"{out['panel_lengthened_from_mm']:.3g} mm\n")
     d_text = f"d={args.d:g} mm" if args.d is not None else "R given (no d)"
-    text = (f"hinge L={args.length:g} mm, {d_text}, h={args.h:g} mm, R={R:.4f}, nz={args.nz}\n"
+    return (f"hinge L={args.length:g} mm, {d_text}, h={args.h:g} mm, R={out['R']:.4f}, nz={args.nz}\n"
             f"  GDFE fold angle  {shown(alpha, 4):.4f} rad ({shown(math.degrees(alpha), 1):.1f} deg)\n"
             + (f"  model {model.name}: closed form {out['fold_angle_model_rad']:.4f} rad (error {shown(out['error_rad'], 4):+.4f})\n"
                if model is not None else
@@ -134,8 +164,6 @@ def _run(args, folder):
             + contact_text(res)
             + (f"\n{ens.text()}" if ens is not None else "")
             + (f"\n  wrote {args.out}/hinge.pvd (open in ParaView), hinge.png, result.json" if args.out else ""))
-    emit(out, args.json, text, command="hinge")
-    return exit_status(res, allow_penetration=args.allow_penetration)
 
 
 def _model_file(path):
