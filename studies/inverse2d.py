@@ -40,7 +40,6 @@ import numpy as np
 
 from gdfe import paper
 from gdfe.inverse2d.design import TOLERANCE_FRACTION
-from gdfe.solver.simulation import default_tol
 from studies._common import check_resolution, finish, headline, main_of, progress, pyplot
 
 NAME = "inverse2d"
@@ -118,19 +117,6 @@ def _associate_start(target, film, sigma, phi):
     return V
 
 
-def _shape_tol(design):
-    """The stopping test of a fold from a given start: ``gdfe.simulate``'s, 1e-6 of the part's size.
-
-    The adjoint's folds ask ``tol=1e-9`` (units of h): an estimated distance to the solution of
-    2.9e-9 mm, 1.2e-10 of the 24 mm strip. There the energy cannot tell the iterates apart (from
-    the mirror image, ten iterations moved the shape 4.5e-7 mm while the energy fell by 1.4e-14 of
-    itself, its round-off), and it stopped at its iteration limit (200, residual 2.9e-8 h; with
-    this test it stops at its 59th, residual 2.4e-10 h). The twist these folds compare needs the
-    shape, not a gradient.
-    """
-    return default_tol(design, "newton-cg")
-
-
 def _twist_limit(dsg):
     """Twist angles of the folds; the start's design (the helicoid's metric, no bending: both faces alike)
     and the relaxed design folded from three members of the helicoid's associate family."""
@@ -147,7 +133,7 @@ def _twist_limit(dsg):
         rows = []
         for label, phi in (("helicoid", math.pi / 2), ("mirror image", -math.pi / 2), ("catenoid strip", 0.0)):
             V0 = _associate_start(dsg.target, film, dsg.sigma, phi)
-            f = fold(design, start=V0, tol=_shape_tol(design))
+            f = fold(design, start=V0, tol=None)  # the shape is wanted: gdfe.simulate's test
             ang, chord = twist_angle(f.points, film)
             rows.append({"start": label, "start_twist_rad": twist_angle(V0, film)[0], "energy": f.energy,
                          "converged": f.converged, "twist_rad": ang, "chord_mm": chord})
@@ -179,7 +165,7 @@ def _metric_only(size, pixel, h=paper.H):
     rows = [{"start": "flat print", "twist_rad": ang, "chord_mm": chord, "energy": flat.energy,
              "converged": bool(flat.converged)}]
     for label, phi in (("helicoid", math.pi / 2), ("mirror image", -math.pi / 2), ("catenoid strip", 0.0)):
-        f = fold(design, start=_associate_start(target, film, sigma, phi), tol=_shape_tol(design))
+        f = fold(design, start=_associate_start(target, film, sigma, phi), tol=None)
         ang, chord = twist_angle(f.points, film)
         rows.append({"start": label, "twist_rad": ang, "chord_mm": chord, "energy": f.energy,
                      "converged": bool(f.converged)})

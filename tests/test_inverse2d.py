@@ -303,19 +303,19 @@ def test_inverse2d_study_coarse(tmp_path):
 
 
 @pytest.mark.slow
-def test_the_studys_folds_from_given_starts_converge_on_the_long_strip():
-    """The 24 mm twisted strip's placement folded from the helicoid's mirror image: with the adjoint's tol=1e-9 it
-    wandered at round-off to its iteration limit; with the study's stopping test (gdfe.simulate's) it converges, to
-    the energy the helicoid's start reaches."""
+def test_a_fold_for_its_shape_converges_on_the_long_strip():
+    """The 24 mm twisted strip's placement folded from the helicoid and its mirror image (the inverse2d study's
+    folds): with tol=1e-9 the mirror image's wandered at round-off to its iteration limit; with tol=None, gdfe.simulate's
+    test, both converge to one minimum. The test bounds each distance to it by 1e-6 of the strip's size, so the
+    energies, quadratic in that distance, agree far within 1e-12 of themselves (measured: 2e-15)."""
     from studies import inverse2d as study
 
     dsg = design_surface(make_target("twist", 24.0), pixel=0.25, d=study.D, iterations=0)
     design = dsg.initial.design
-    folds = [fold(design, start=study._associate_start(dsg.target, dsg.film, dsg.sigma, phi),
-                  tol=study._shape_tol(design)) for phi in (math.pi / 2, -math.pi / 2)]
+    folds = [fold(design, start=study._associate_start(dsg.target, dsg.film, dsg.sigma, phi), tol=None)
+             for phi in (math.pi / 2, -math.pi / 2)]
     assert all(f.converged for f in folds), [(f.iterations, f.residual) for f in folds]
     assert folds[1].energy == pytest.approx(folds[0].energy, rel=1e-12)
-    assert study._shape_tol(design) == pytest.approx(gdfe.solver.simulation.default_tol(design, "newton-cg"))
 
 
 def test_a_projection_that_loses_the_fold_is_named_as_the_cause():

@@ -41,6 +41,8 @@ import scipy.sparse as sp
 from gdfe._validation import GdfeError, check_array, check_instance
 from gdfe.design import Design
 from gdfe.solver import D8, Solver, factorise
+from gdfe.solver.methods import auto_method
+from gdfe.solver.simulation import default_tol
 
 __all__ = ["Fold", "fold", "exact_hessian", "rigid_gauge", "contraction_gradient", "rest_derivative"]
 
@@ -89,9 +91,13 @@ def fold(design, start=None, tol=1e-9, max_iter=200, method="auto"):
     start : (n, 3) float array [mm], optional
         Starting shape (an earlier fold of a similar design); default the solver's
         linearised start from the flat print.
-    tol : float
+    tol : float or None
         Tolerance of :meth:`gdfe.solver.Solver.solve` (units of h). The adjoint gradient is as
-        accurate as the equilibrium: keep it tight.
+        accurate as the equilibrium: keep it tight. None: :func:`gdfe.simulate`'s test (the
+        estimated distance to the solution below 1e-6 of the part's size), for a fold whose
+        shape is wanted, not a gradient; on a large part 1e-9 asks for a distance the energy's
+        round-off cannot resolve (on a 24 mm strip, 1.2e-10 of its size), and the solve may
+        wander to ``max_iter`` there.
     max_iter : int
     method : str
         Solver method (:data:`gdfe.solver.METHODS`).
@@ -107,6 +113,8 @@ def fold(design, start=None, tol=1e-9, max_iter=200, method="auto"):
         start = solver.linearised_start(design.mesh.points.copy())
     else:
         start = check_array("start", start, shape=design.mesh.points.shape)
+    if tol is None:
+        tol = default_tol(design, auto_method(design) if method == "auto" else method)
     stats = solver.solve(start, 1.0, method=method, tol=tol, max_iter=max_iter)
     o = solver.orient(stats.points)
     return Fold(design=design, points=stats.points, Q=o.Q, S=o.S, P=solver.rest(1.0).P, energy=o.energy,
