@@ -1447,26 +1447,12 @@ def _solve_free(steps, F):
     return out
 
 
-@dataclasses.dataclass(frozen=True, eq=False)
-class _Move:
-    """What one Newton iteration did (:func:`_damped_step`): the new iterate and damping, and its record."""
-
-    x: typing.Any
-    mu: float
-    kind: str
-    moved: float
-    alpha: typing.Optional[float]
-    damping: typing.Optional[float]
-    agreement: typing.Optional[float]
-    tries: int
-    cg_iterations: int
-
-
 def _damped_step(steps, x, plain, Vp, activation, contact, grad, direction, mu, alphas, estimate, res,
                  vanishing_damping, timed, it):
     """One iteration of :func:`solve_newton` from its Newton system: the damped step that lowers the energy.
 
-    The step at damping ``mu`` is tried at the lengths ``alphas`` (:func:`_line_search`); the first
+    Returns the new iterate, the next damping and the step's fields of its :class:`NewtonStep`. The
+    step at damping ``mu`` is tried at the lengths ``alphas`` (:func:`_line_search`); the first
     that lowers the energy is taken and the damping follows (:func:`_next_damping`); when none does,
     ``mu`` grows eightfold and the step is recomputed, 20 times at most, and then the plain step
     is taken where it lowers the energy (``kind`` "plain", else "none"). ``estimate`` is told the
@@ -1493,18 +1479,19 @@ def _damped_step(steps, x, plain, Vp, activation, contact, grad, direction, mu, 
                       np.nan if agreement is None else agreement)
             fast = (vanishing_damping and taken == 1.0 and contact is None and predicted > 0.0
                     and fell >= MODEL_AGREEMENT * predicted)
-            return _Move(x=x, mu=_next_damping(mu, full, fast, res, vanishing_damping, contact=contact is not None),
-                         kind="newton", moved=moved, alpha=taken, damping=mu, agreement=agreement, tries=tries,
-                         cg_iterations=cg_here)
+            return x, _next_damping(mu, full, fast, res, vanishing_damping, contact=contact is not None), dict(
+                kind="newton", length_h=moved, alpha=taken, damping=mu, model_agreement=agreement, tries=tries,
+                cg_iterations=cg_here)
         mu *= 8.0
     # no descent even with heavy damping: take the plain step
     after = _plain_fallback(steps, x, plain, Vp, activation, contact)
+    fields = dict(kind="none", length_h=0.0, alpha=None, damping=None, model_agreement=None, tries=tries,
+                  cg_iterations=cg_here)
     if after is None:
-        return _Move(x=x, mu=mu, kind="none", moved=0.0, alpha=None, damping=None, agreement=None, tries=tries,
-                     cg_iterations=cg_here)
+        return x, mu, fields
     estimate.plain(res)
-    return _Move(x=after, mu=mu, kind="plain", moved=float(np.abs(deformation(after.V - x.V, after.V)).max() / scale),
-                 alpha=None, damping=None, agreement=None, tries=tries, cg_iterations=cg_here)
+    fields.update(kind="plain", length_h=float(np.abs(deformation(after.V - x.V, after.V)).max() / scale))
+    return after, mu, fields
 
 
 def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,), contact=None, on_drift="warn",
@@ -1632,14 +1619,11 @@ def solve_newton(steps, V0, activation, tol, max_iter, directions, alphas=(1.0,)
         if ends(res):
             break
         grad, direction = timed(_newton_direction, steps, directions, x, plain, res, contact, estimate.error, target)
-        move = _damped_step(steps, x, plain, Vp, activation, contact, grad, direction, mu, alphas, estimate, res,
-                            vanishing_damping, timed, it)
-        x, mu = move.x, move.mu
-        record.append(NewtonStep(iteration=it, residual_h=res, kind=move.kind,
-                                 length_h=move.moved, alpha=move.alpha, damping=move.damping, tries=move.tries,
-                                 cg_iterations=move.cg_iterations, model_agreement=move.agreement, energy=float(x.E),
-                                 estimate_h=float(estimate.error), seconds=time.perf_counter() - t_it))
-        if move.kind == "none":  # with contact, no step lowers the energy: stopped, not converged
+        x, mu, fields = _damped_step(steps, x, plain, Vp, activation, contact, grad, direction, mu, alphas, estimate,
+                                     res, vanishing_damping, timed, it)
+        record.append(NewtonStep(iteration=it, residual_h=res, energy=float(x.E), estimate_h=float(estimate.error),
+                                 seconds=time.perf_counter() - t_it, **fields))
+        if record[-1].kind == "none":  # with contact, no step lowers the energy: stopped, not converged
             log.warning("newton with contact: no step lowers the energy at residual %.3e", res)
             break
         log.debug("newton %d: residual %.3e, error estimate %.3e, energy %.6e, mu %.1e",
