@@ -80,13 +80,16 @@ def test_held_out_loop_diagnose_model_out_hinge_works_for_every_table1_specimen(
 
 
 def test_cli_says_the_panels_were_lengthened(tmp_path, capsys):
-    """``gdfe hinge --model`` says in its text and JSON how far the panels were lengthened."""
+    """``gdfe hinge --model`` says in its text, its JSON and result.json how far the panels were lengthened."""
     path = spreading(2.0).save(tmp_path / "M.toml")
     assert main(["hinge", "-L", "1.6", "--d", "0.33", "--panel-length", "0.5", "--model", str(path), "-q"]) == 0
     assert "panels lengthened to" in capsys.readouterr().out
     assert main(["hinge", "-L", "1.6", "--d", "0.33", "--panel-length", "0.5", "--model", str(path), "--json",
-                 "-q"]) == 0
+                 "-q", "--out", str(tmp_path / "run")]) == 0
     out = json.loads(capsys.readouterr().out)
+    saved = json.loads((tmp_path / "run" / "result.json").read_text())  # the file says it as the output does
+    assert saved["panel_lengthened_from_mm"] == out["panel_lengthened_from_mm"]
+    assert saved["panel_reach_mm"] == out["panel_reach_mm"]
     assert out["panel_lengthened_from_mm"] == pytest.approx(0.5, abs=0.06)
     assert out["panel_reach_mm"] == pytest.approx(1.0, abs=0.11)  # lambda / 2, within a cell
     assert out["panel_length_mm"] == pytest.approx(out["panel_lengthened_from_mm"] + out["panel_reach_mm"])

@@ -73,9 +73,6 @@ def _run(args, folder):
                                          command="hinge")
             if ens is not None:
                 out["files"].update(write_ensemble(ens, res, args.out, "hinge", out["title"]))
-    if "panel_lengthened_from_mm" in design.meta:  # the model's contraction reached through the panels
-        out["panel_lengthened_from_mm"] = design.meta["panel_lengthened_from_mm"]
-        out["panel_reach_mm"] = design.meta["panel_reach_mm"]
     emit(out, args.json, _text(args, design, res, out, model, ens), command="hinge")
     return exit_status(res, allow_penetration=args.allow_penetration)
 
@@ -141,6 +138,9 @@ def _record(args, design, res, K, model):
     else:
         ref = out["fold_angle_eq1_rad"] if out["fold_angle_eq1_rad"] is not None else out["fold_angle_eq2_rad"]
     out["error_rad"] = alpha - ref
+    if "panel_lengthened_from_mm" in design.meta:  # the model's contraction reached through the panels
+        out["panel_lengthened_from_mm"] = design.meta["panel_lengthened_from_mm"]
+        out["panel_reach_mm"] = design.meta["panel_reach_mm"]
     out.update(contact_fields(res))
     return out
 
