@@ -26,6 +26,8 @@ from studies._common import check_resolution, finish, headline, main_of, pyplot
 
 NAME = "fig02"
 BOOT = {"coarse": 500, "default": 2000, "fine": 10000}
+#: The tests within this of Figure 6's d [mm] whose fold angles imply its R by Eq. 2.
+NEAR_FIG6 = 0.035
 
 
 def run(resolution="default", out=None, data=None):
@@ -43,13 +45,13 @@ def run(resolution="default", out=None, data=None):
     thin = d <= d_min
     first_thin = int(np.argmin(d))
     R_tests = 1.0 - y * h / L  # Eq. 2 applied to every test: the contraction ratio each test implies
-    near = np.abs(d - D_FIG6) <= 0.035
+    near = np.abs(d - D_FIG6) <= NEAR_FIG6
     readings = _readings(fits, d, h)
     result = {
         "study": NAME, "figure": "Fig. 2 / Eq. 1-3", "title": "calibration of K from Table 1",
         "resolution": resolution, "n_boot": n_boot, "headlines": _headlines(fits, readings, thin, d_min),
         "converged": True,
-        "summary": _summary(fits, readings, tests, paper_on_data, pred_paper, d_min, R_tests[near]),
+        "summary": _summary(fits, readings, tests, paper_on_data, pred_paper, d_min, first_thin, d[near], R_tests[near]),
         "data": {"L_mm": L.tolist(), "d_mm": d.tolist(), "h_mm": h.tolist(), "alpha_rad": y.tolist()},
         "fits": {m: f.as_dict() for m, f in fits.items()},
         "core_fit_eq1": {"K": core.K, "r2": core.r2, "K_ci95": list(core.K_ci)},
@@ -120,11 +122,13 @@ def _headlines(fits, readings, thin, d_min):
     ]
 
 
-def _summary(fits, readings, tests, paper_on_data, pred_paper, d_min, R_near):
+def _summary(fits, readings, tests, paper_on_data, pred_paper, d_min, first_thin, d_near, R_near):
     e1, e1d, power = fits["eq1"], fits["eq1-d1"], fits["power"]
     d, y = tests.d, tests.alpha
-    first_thin = int(np.argmin(d))
     thin = int((d <= d_min).sum())
+    near = (f"the tests with d = {d_near.min():.2f}-{d_near.max():.2f} mm imply R = {R_near.min():.2f}-"
+            f"{R_near.max():.2f} by Eq. 2" if R_near.size else
+            f"no test has d within {NEAR_FIG6:g} mm of {D_FIG6:g} mm to imply R there by Eq. 2")
     return {
         "paper": "K = 0.3706, R^2 around 0.8 (fit of alpha against sqrt(h/d^3) L); R = 0.7 for d = 0.33 mm",
         "ours": (f"printed regressor: K = {e1.K:.4f} (95 % CI {e1.K_ci[0]:.4f}-{e1.K_ci[1]:.4f}), R^2 = {e1.r2:.3f}; "
@@ -141,8 +145,7 @@ def _summary(fits, readings, tests, paper_on_data, pred_paper, d_min, R_near):
             f"({thin} of {y.size} tests; d = 0.15 gives R = "
             f"{1 - PAPER_K * (H / 0.15) ** 1.5:.3f}). The R = 0.7 of Fig. 6 (Eq. 3: {readings[0]['R_d033']:.4f}) "
             f"rests on it; a consistent reading gives R(0.33) = {readings[1]['R_d033']:.3f} (eq1 refit), "
-            f"{readings[2]['R_d033']:.3f} (d^1) or {readings[3]['R_d033']:.3f} (power), and the tests with "
-            f"d = 0.31-0.36 mm imply R = {R_near.min():.2f}-{R_near.max():.2f} by Eq. 2. "
+            f"{readings[2]['R_d033']:.3f} (d^1) or {readings[3]['R_d033']:.3f} (power), and {near}. "
             f"The fitted exponent of d is {power.p:.2f} (95 % CI {power.p_ci[0]:.2f}-"
             f"{power.p_ci[1]:.2f}), not 1.5."),
     }

@@ -10,6 +10,8 @@ import math
 
 import pytest
 
+import gdfe
+
 from studies import (fig02_calibration, fig06_angle_validation, fig07_crease_fold, fig08_freeform, fig09_letters,
                      fig10_segmentation, fig11_design_validation)
 
@@ -50,6 +52,19 @@ def test_fig02_calibration(tmp_path):
     assert len(r["eq3_paper"]["tests_R_le_0"]) == 4  # d = 0.11, 0.12, 0.13, 0.14 (0.15 gives R = 0.004)
     # Eq. 1 at the thinnest test (L = 1.5, d = 0.11, h = 0.29): 0.3706 sqrt(0.29 / 0.11^3) 1.5 = 8.206 rad
     assert r["eq3_paper"]["thinnest_test"]["alpha_eq1"] == pytest.approx(8.2, abs=0.01)
+
+
+def test_fig02_with_tests_of_its_own_none_near_figure_6s_coat(tmp_path):
+    """``run(data=CSV)`` with no test within 0.035 mm of Figure 6's d = 0.33 mm says so (it raised on the empty set)."""
+    rows = gdfe.TABLE1.read_text().splitlines()
+    keep = [r for r in rows[1:] if abs(float(r.split(",")[1]) - 0.33) > 0.035]
+    assert 0 < len(keep) < len(rows) - 1
+    data = tmp_path / "far.csv"
+    data.write_text("\n".join([rows[0], *keep]) + "\n")
+    r = fig02_calibration.run("coarse", tmp_path, data=data)
+    assert r["R_tests_near_d033"] == {"d_mm": [], "R": []}
+    assert "no test has d within 0.035 mm of 0.33 mm" in r["summary"]["discrepancy"]
+    assert (tmp_path / "fig02.png").is_file()
 
 
 def test_fig06_angle_validation(tmp_path):
