@@ -208,13 +208,14 @@ def strip_pattern(couples, h=DEFAULT_H, R=None, cell=None, w_min=None, rounding=
                                                                         clamp, geometric)
     k = len(couples)
     angle = np.array([c.angle for c in couples])
-    angle_p = np.sign(angle) * (1.0 - R) * L_cp / h
     if geometric:
         material, blocks = _refine_for_model(material, segment, couples, blocks, b, model, R, h, cell)
         L_cp = np.array([float((material[segment == i] != int(Material.RIGID)).sum() * cell)
                          for i in range(k)])
         angle_p = _model_turns(material, segment, k, model, R, h, cell)
-        clamped = _model_clamps(material, segment, couples, model, R, h, cell, d, clamp)
+        clamped = _model_clamps(material, segment, couples, angle, model, R, h, cell, d, clamp)
+    else:
+        angle_p = np.sign(angle) * (1.0 - R) * L_cp / h
     return StripPattern(material=material, cell=cell, segment=segment,
                         couples=couples, h=h, R=R, w_min=w_min, rounding=rounding, L_c=L_c,
                         L_c_printed=L_cp, blocks=blocks, angle=angle, angle_printed=angle_p,
@@ -296,12 +297,11 @@ def _paper_rule_columns(couples, h, R, cell, b, rounding, clamp, geometric):
     return np.concatenate(materials), np.concatenate(segments), L_c, L_cp, blocks, clamped
 
 
-def _model_clamps(material, segment, couples, model, R, h, cell, d, clamp):
-    """The couples that turn less than asked even with all their columns contracting: this model
-    cannot fold them at this ``d`` (an overshoot is the model's block quantum, not a clamp). The
+def _model_clamps(material, segment, couples, angle, model, R, h, cell, d, clamp):
+    """The couples that turn less than their ``angle`` even with all their columns contracting: this
+    model cannot fold them at this ``d`` (an overshoot is the model's block quantum, not a clamp). The
     first is an error unless ``clamp``."""
     k = len(couples)
-    angle = np.array([c.angle for c in couples])
     most = np.zeros(k)
     for i, cp in enumerate(couples):
         full = material.copy()
