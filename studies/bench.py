@@ -394,9 +394,7 @@ def _sheet_case(args):
     import resource
 
     import gdfe
-    from gdfe.resources import solve_heap
-    from gdfe.solver import AUTO_NEWTON_CELLS, Solver, auto_method, factor_backend
-    from gdfe.solver.energy import rotations
+    from gdfe.solver import AUTO_NEWTON_CELLS, auto_method, factor_backend
     from gdfe.solver.newton import ReducedHessian
 
     kind, n_cells, repeats, mask_dir, hessian_max, coarse_solver = args
@@ -441,9 +439,23 @@ def _sheet_case(args):
            "newton_steps": [s.as_dict() for s in res.newton_steps], "device": res.device}
     if res.device == "gpu":  # the GPU's answer against the CPU's
         row["cpu_answer"] = _cpu_answer(des, res)
-    # lower bound: one 3-column solve with the prefactorised n x n matrix plus one batched polar
-    # decomposition of all cells (numpy's SVD, and the solver's own polar iteration)
-    # measured with the C heap as the solve had it (gdfe.resources.solve_heap): the same allocator for both
+    row["lower_bound"], row["factorisation"] = _lower_bound(des, res, med, row["per_iteration_s"], hessian_max)
+    return row
+
+
+def _lower_bound(des, res, seconds, per_iteration, hessian_max):
+    """The sheet's lower bound per iteration and its local-global iteration beside it, and the factorisation
+    backends timed on its matrices: ``(lower_bound, factorisation)``.
+
+    The bound is one 3-column solve with the prefactorised n x n matrix (the fastest backend's) plus one
+    batched polar decomposition of all cells (numpy's SVD; the solver's own polar iteration beside it),
+    measured with the C heap as the solve had it (:func:`gdfe.resources.solve_heap`). ``seconds`` is the
+    solve's median time, ``per_iteration`` its fine level's seconds per Newton iteration.
+    """
+    from gdfe.resources import solve_heap
+    from gdfe.solver import Solver
+    from gdfe.solver.energy import rotations
+
     with solve_heap(des):
         sv = Solver(des)
         V = res.points
@@ -468,23 +480,20 @@ def _sheet_case(args):
         t_orient = median_time(lambda: sv.orient(V), k)[0]
         t_assemble = median_time(lambda: sv.assemble(Q, V[sv.pin]), k)[0]
         t_vcycle = median_time(lambda: sv.multigrid.vcycle(rhs), k)[0] if sv.uses_multigrid else None
-        bound = t_solve + t_svd
-        row["lower_bound"] = {"solve_3rhs_s": t_solve, "solve_kind": solve_kind, "svd_s": t_svd, "bound_s": bound,
-                              "multigrid_solve_3rhs_s": t_multigrid,
-                              "bound_iterations_multigrid": (None if t_multigrid is None
-                                                             else med / (t_multigrid + t_svd)),
-                              "polar_s": t_polar, "bound_polar_s": t_solve + t_polar, "vcycle_3rhs_s": t_vcycle,
-                              "orientation_s": t_orient, "assembly_s": t_assemble,
-                              "local_global_s": t_orient + t_assemble,
-                              "local_global_ratio": (t_orient + t_assemble) / bound,
-                              "solver_iteration_ratio": row["per_iteration_s"] / bound,
-                              "bound_iterations": med / bound, "bound_polar_iterations": med / (t_solve + t_polar)}
+    bound = t_solve + t_svd
+    lower_bound = {"solve_3rhs_s": t_solve, "solve_kind": solve_kind, "svd_s": t_svd, "bound_s": bound,
+                   "multigrid_solve_3rhs_s": t_multigrid,
+                   "bound_iterations_multigrid": None if t_multigrid is None else seconds / (t_multigrid + t_svd),
+                   "polar_s": t_polar, "bound_polar_s": t_solve + t_polar, "vcycle_3rhs_s": t_vcycle,
+                   "orientation_s": t_orient, "assembly_s": t_assemble, "local_global_s": t_orient + t_assemble,
+                   "local_global_ratio": (t_orient + t_assemble) / bound,
+                   "solver_iteration_ratio": per_iteration / bound,
+                   "bound_iterations": seconds / bound, "bound_polar_iterations": seconds / (t_solve + t_polar)}
     if des.n_cells <= hessian_max:
         fdof = (3 * sv.free[:, None] + np.arange(3)).ravel()
         Hs = sv.hessian(Q, S, mu=1e-3)[fdof][:, fdof].tocsc()
         fac["3n_hessian"] = _time_factorisations(Hs, 1, 1)
-    row["factorisation"] = fac
-    return row
+    return lower_bound, fac
 
 
 def _cpu_answer(des, res):

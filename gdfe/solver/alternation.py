@@ -5,6 +5,11 @@ converges, but slowly for bending. ``"anderson"`` accelerates the same fixed-poi
 with Anderson mixing, accepting a mixed iterate only when its energy is below that of
 the current iterate (otherwise it takes the plain step and forgets its history). The
 converged shape is a fixed point of the paper's alternation either way.
+
+Above :data:`gdfe.solver.MULTIGRID_CELLS` each assembly step is solved by multigrid CG to the same
+relative residual, started from the last move repeated (after an accepted Anderson mix, from the
+mixed iterate): the moves settle as the alternation converges, and the solve shortens (from zero it
+takes some 16 V-cycles at 10^5 cells; docs/solver_history.md).
 """
 
 from __future__ import annotations
@@ -43,7 +48,7 @@ def solve_alternation(steps, V0, activation, tol, max_iter, anderson=False, hist
     scale = steps.design.h
     o = steps.orient(V, activation)
     Q, E = o.Q, o.energy
-    G = steps.assemble(Q, Vp, activation).V
+    G = steps.assemble(Q, Vp, activation, guess=V).V
     F = G - V
     energies = [E]
     dF, dG = [], []
@@ -58,17 +63,18 @@ def solve_alternation(steps, V0, activation, tol, max_iter, anderson=False, hist
             trial = steps.orient(Vt, activation)
             if trial.energy <= E:
                 V, Q, E = Vt, trial.Q, trial.energy
+                guess = V
             else:
                 dF, dG = [], []
-                V = G
+                V, guess = G, G + F
                 o = steps.orient(V, activation)
                 Q, E = o.Q, o.energy
         else:
-            V = G
+            V, guess = G, G + F
             o = steps.orient(V, activation)
             Q, E = o.Q, o.energy
         energies.append(E)
-        G_new = steps.assemble(Q, Vp, activation).V
+        G_new = steps.assemble(Q, Vp, activation, guess=guess).V
         F_new = G_new - V
         it += 1
         if anderson:

@@ -1362,7 +1362,7 @@ def _plain_step(steps, x, Vp, activation, contact, lazy, may_end):
     gradient. With ``contact`` the move holds the barrier's force at ``x``.
     """
     scale = steps.design.h
-    plain = steps.assemble(x.Q, Vp, activation, solve=not lazy)
+    plain = steps.assemble(x.Q, Vp, activation, solve=not lazy, guess=x.V)
     G = plain.V
     if lazy:
         g = 2.0 * (steps.apply_L(x.V) - plain.b)
@@ -1430,7 +1430,7 @@ def _plain_fallback(steps, x, plain, Vp, activation, contact):
     cut by collision detection and shortened by :data:`CONTACT_ALPHAS` until the energy falls.
     """
     if contact is None:
-        V = plain.G if plain.G is not None else steps.assemble(x.Q, Vp, activation).V
+        V = plain.G if plain.G is not None else steps.assemble(x.Q, Vp, activation, guess=x.V).V
         return _iterate(steps, V, activation, None)
     amax = contact.max_step(x.V, x.V + plain.move, x.state)
     for alpha in tuple(amax * a for a in CONTACT_ALPHAS) if amax > 0 else ():
