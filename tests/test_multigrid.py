@@ -228,7 +228,7 @@ def test_the_alternation_starts_each_multigrid_solve_near_its_answer(monkeypatch
         assert st.iterations == ref[method].iterations == 12 and all(guesses)
         assert np.abs(st.points - ref[method].points).max() < 1e-9 * size
         np.testing.assert_allclose(st.energies, ref[method].energies, rtol=1e-9)
-        # the last assembly step's system solved from zero, against the solves from their guesses
+        # the assembly system at the last answer's rotations solved from zero, against the solves from guesses
         o = s.orient(st.points)
         rhs = s.assemble(o.Q, V0[s.pin], solve=False).b[s.free] - s.L_fp @ V0[s.pin][None, :]
         n = len(cycles)
