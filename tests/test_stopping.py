@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import gdfe
-from gdfe.solver import SHAPE_ACCURACY, STEP_TOL_FACTOR, Solver, default_tol
+from gdfe.solver import SHAPE_ACCURACY, STEP_TOL_FACTOR, Solver, auto_method, default_tol
 from gdfe.solver.newton import DRIFT_WINDOW, _solve_free, deformation, solve_newton
 from studies.bench import mask_sheet
 
@@ -40,6 +40,11 @@ def test_default_tol_scales_with_the_part():
         size = np.linalg.norm(np.ptp(des.mesh.points, axis=0))
         assert default_tol(des, "newton-cg") == pytest.approx(SHAPE_ACCURACY * size / (STEP_TOL_FACTOR * des.h))
     assert default_tol(small, "plain") == default_tol(big, "anderson") == 1e-7
+    # "auto" is the method simulate picks (a Newton method for both), not the alternation's 1e-7
+    for des in (small, big):
+        assert default_tol(des, "auto") == default_tol(des, auto_method(des)) != 1e-7
+    with pytest.raises(gdfe.GdfeError, match="method"):
+        default_tol(small, "newton-gc")
 
 
 def test_default_stop_is_within_the_stated_accuracy_of_a_tight_solve():

@@ -41,7 +41,6 @@ import scipy.sparse as sp
 from gdfe._validation import GdfeError, check_array, check_instance
 from gdfe.design import Design
 from gdfe.solver import D8, Solver, factorise
-from gdfe.solver.methods import auto_method
 from gdfe.solver.simulation import default_tol
 
 __all__ = ["Fold", "fold", "exact_hessian", "rigid_gauge", "contraction_gradient", "rest_derivative"]
@@ -114,7 +113,7 @@ def fold(design, start=None, tol=1e-9, max_iter=200, method="auto"):
     else:
         start = check_array("start", start, shape=design.mesh.points.shape)
     if tol is None:
-        tol = default_tol(design, auto_method(design) if method == "auto" else method)
+        tol = default_tol(design, method)
     stats = solver.solve(start, 1.0, method=method, tol=tol, max_iter=max_iter)
     o = solver.orient(stats.points)
     return Fold(design=design, points=stats.points, Q=o.Q, S=o.S, P=solver.rest(1.0).P, energy=o.energy,

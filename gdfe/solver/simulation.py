@@ -76,7 +76,11 @@ def default_tol(design, method):
     Newton methods: :data:`SHAPE_ACCURACY` times the part's size, over
     ``STEP_TOL_FACTOR * h`` (their stopping test asks the estimated distance to the solution
     to be below ``STEP_TOL_FACTOR * tol * h``); the alternation methods: :data:`ALTERNATION_TOL`.
+    ``"auto"`` is the method :func:`~gdfe.solver.auto_method` picks for ``design``.
     """
+    method = check_choice("method", method, METHODS)
+    if method == "auto":
+        method = auto_method(design)
     if not method.startswith("newton"):
         return ALTERNATION_TOL
     size = float(np.linalg.norm(np.ptp(design.mesh.points, axis=0)))
