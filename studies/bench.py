@@ -462,9 +462,9 @@ def _lower_bound(des, res, seconds, per_iteration, hessian_max):
         o = sv.orient(V)
         Q, S = o.Q, o.S
         rhs = np.asfortranarray(np.random.default_rng(0).standard_normal((len(sv.free), 3)))
-        k = 5 if des.n_cells <= 20_000 else 3
-        # factorisation backends on this sheet's matrices; the bound's solve is the fastest of their solves
         big = des.n_cells > 20_000
+        k = 3 if big else 5
+        # factorisation backends on this sheet's matrices; the bound's solve is the fastest of their solves
         fac = {"n": _time_factorisations(sv.L_ff, 3, 1 if big else 3, cells=des.n_cells)}
         solves = {name: v["solve_s"] for name, v in fac["n"].items() if "solve_s" in v}
         # the multigrid's solve to round-off: the bound where no factorisation fits in memory (SuperLU's alone

@@ -234,4 +234,6 @@ def test_the_alternation_starts_each_multigrid_solve_near_its_answer(monkeypatch
         n = len(cycles)
         counted(rhs)
         cold = cycles[n]
+        # the first steps move the flat print most, and their guesses save little (measured 14, 14, 13, 12-13 against
+        # 15 from zero); from the fifth on every solve must be shorter than that one from zero
         assert max(cycles[4:n]) < cold, (method, cycles)

@@ -48,6 +48,7 @@ def solve_alternation(steps, V0, activation, tol, max_iter, anderson=False, hist
     scale = steps.design.h
     o = steps.orient(V, activation)
     Q, E = o.Q, o.energy
+    ahead = steps.uses_multigrid  # only the multigrid's solve starts from a guess (a factor's needs none)
     G = steps.assemble(Q, Vp, activation, guess=V).V
     F = G - V
     energies = [E]
@@ -66,11 +67,11 @@ def solve_alternation(steps, V0, activation, tol, max_iter, anderson=False, hist
                 guess = V
             else:
                 dF, dG = [], []
-                V, guess = G, G + F
+                V, guess = G, (G + F if ahead else None)
                 o = steps.orient(V, activation)
                 Q, E = o.Q, o.energy
         else:
-            V, guess = G, G + F
+            V, guess = G, (G + F if ahead else None)
             o = steps.orient(V, activation)
             Q, E = o.Q, o.energy
         energies.append(E)
