@@ -51,7 +51,8 @@ def run(resolution="default", out=None, data=None):
         "study": NAME, "figure": "Fig. 2 / Eq. 1-3", "title": "calibration of K from Table 1",
         "resolution": resolution, "n_boot": n_boot, "headlines": _headlines(fits, readings, thin, d_min),
         "converged": True,
-        "summary": _summary(fits, readings, tests, paper_on_data, pred_paper, d_min, first_thin, d[near], R_tests[near]),
+        "summary": _summary(fits, readings, tests, paper_on_data, pred_paper, d_min, int(thin.sum()), first_thin,
+                            d[near], R_tests[near]),
         "data": {"L_mm": L.tolist(), "d_mm": d.tolist(), "h_mm": h.tolist(), "alpha_rad": y.tolist()},
         "fits": {m: f.as_dict() for m, f in fits.items()},
         "core_fit_eq1": {"K": core.K, "r2": core.r2, "K_ci95": list(core.K_ci)},
@@ -122,10 +123,9 @@ def _headlines(fits, readings, thin, d_min):
     ]
 
 
-def _summary(fits, readings, tests, paper_on_data, pred_paper, d_min, first_thin, d_near, R_near):
+def _summary(fits, readings, tests, paper_on_data, pred_paper, d_min, thin, first_thin, d_near, R_near):
     e1, e1d, power = fits["eq1"], fits["eq1-d1"], fits["power"]
     d, y = tests.d, tests.alpha
-    thin = int((d <= d_min).sum())
     near = (f"the tests with d = {d_near.min():.2f}-{d_near.max():.2f} mm imply R = {R_near.min():.2f}-"
             f"{R_near.max():.2f} by Eq. 2" if R_near.size else
             f"no test has d within {NEAR_FIG6:g} mm of {D_FIG6:g} mm to imply R there by Eq. 2")
