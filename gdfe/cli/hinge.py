@@ -146,6 +146,8 @@ def _record(args, design, res, K, model):
 
 
 def _text(args, design, res, out, model, ens):
+    """The command's text: the fold angle beside its reference (the model's closed form, or Eq. 1 and 2), the
+    solve, the contact check and, where asked, the uncertainty and the files written."""
     alpha = out["fold_angle_rad"]
     lengthened = ""
     if "panel_lengthened_from_mm" in out:
