@@ -8,7 +8,7 @@ import pytest
 import gdfe
 import gdfe.solver.energy  # noqa: F401  (the module; gdfe.solver.energy is also a function)
 from gdfe.solver import Solver
-from gdfe.solver.multigrid import Multigrid, lattice, prolongation
+from gdfe.solver.multigrid import Multigrid, chebyshev2, lattice, prolongation
 from studies.bench import mask_sheet
 
 
@@ -62,6 +62,42 @@ def test_vcycle_contraction_does_not_grow_with_the_levels():
     assert rho < 0.3, f"V-cycle contraction {rho:.3f} per cycle"
 
 
+def test_chebyshev2_is_the_least_degree_2_polynomial_on_its_interval():
+    """``1 - a mu + c mu^2`` equioscillates on ``[top / ratio, top]`` at +-1 / T2(sigma) (9/41 for the default
+    ratio 4, against 2/3 for one Jacobi sweep), and stays below 1 in size on ``(0, a / c)``."""
+    for ratio in (4.0, 2.5, 10.0):
+        a, c = chebyshev2(ratio)
+        lo, top = 4.0 / 3.0 / ratio, 4.0 / 3.0
+        sigma = (top + lo) / (top - lo)
+        bound = 1.0 / (2.0 * sigma ** 2 - 1.0)
+        f = lambda mu: 1.0 - a * mu + c * mu * mu  # noqa: E731
+        mu = np.linspace(lo, top, 2001)
+        assert np.abs(f(mu)).max() == pytest.approx(bound, rel=1e-12)
+        assert f(lo) == pytest.approx(bound) and f(top) == pytest.approx(bound) and f((lo + top) / 2) == pytest.approx(-bound)
+        inside = np.linspace(0.0, a / c, 2001)[1:-1]
+        assert np.all(np.abs(f(inside)) < 1.0)
+    assert 1.0 / (2.0 * (5.0 / 3.0) ** 2 - 1.0) == pytest.approx(9.0 / 41.0)
+
+
+def test_the_solve_cycle_contracts_faster_than_the_preconditioner_cycle():
+    """Stationary cycles on the 10^4-cell sheet's four levels. Measured: 0.243 per cycle with the Chebyshev
+    smoothing of :meth:`Multigrid.solve_cycle` below the finest level, 0.182 with it on every level, 0.379 with
+    the Jacobi V(1,1) of :meth:`Multigrid.vcycle` (0.231 with V(2,2))."""
+    des = gdfe.from_masks(*mask_sheet(10_000), 0.1, 0.7, nz=1)
+    s = Solver(des)
+    b = np.random.default_rng(0).standard_normal(len(s.free))
+    mg = Multigrid(s.L_ff, lattice(des.mesh)[s.free], coarsest=100)
+    assert len(mg.levels) >= 4
+    A = mg.levels[0][0]
+    rho = {}
+    for name, cycle in (("solve", mg.solve_cycle), ("vcycle", mg.vcycle)):
+        x = np.zeros_like(b)
+        for _ in range(10):
+            x += cycle(b - A @ x)
+        rho[name] = (np.linalg.norm(b - A @ x) / np.linalg.norm(b)) ** 0.1
+    assert rho["solve"] < 0.27 and rho["solve"] < 0.7 * rho["vcycle"], rho
+
+
 def test_vcycle_is_symmetric_positive_definite_and_solve_matches_the_factor():
     des = _disc()
     s = Solver(des)
@@ -71,6 +107,9 @@ def test_vcycle_is_symmetric_positive_definite_and_solve_matches_the_factor():
     x, y = rng.standard_normal((2, len(s.free)))
     assert x @ mg.vcycle(y) == pytest.approx(y @ mg.vcycle(x), rel=1e-10)
     assert x @ mg.vcycle(x) > 0
+    assert x @ mg.solve_cycle(y) == pytest.approx(y @ mg.solve_cycle(x), rel=1e-10)
+    assert x @ mg.solve_cycle(x) > 0
+    np.testing.assert_allclose(mg.solve_cycle(np.column_stack([x, y]))[:, 1], mg.solve_cycle(y), rtol=1e-12)
     # in single precision: the same cycle to float32's round-off
     np.testing.assert_allclose(mg.vcycle(y, single=True), mg.vcycle(y), rtol=0, atol=1e-5 * np.abs(mg.vcycle(y)).max())
     b = rng.standard_normal((len(s.free), 3))
@@ -213,7 +252,7 @@ def test_the_alternation_starts_each_multigrid_solve_near_its_answer(monkeypatch
         s = Solver(des)
         assert s.uses_multigrid
         cycles, guesses = [], []
-        solve, vcycle = s.multigrid.solve, s.multigrid.vcycle
+        solve, vcycle = s.multigrid.solve, s.multigrid.solve_cycle
 
         def counted(b, *args, x0=None, **kwargs):
             cycles.append(0)
@@ -223,17 +262,26 @@ def test_the_alternation_starts_each_multigrid_solve_near_its_answer(monkeypatch
         def cycle(r, *args, **kwargs):
             cycles[-1] += 1
             return vcycle(r, *args, **kwargs)
-        s.multigrid.solve, s.multigrid.vcycle = counted, cycle
+        s.multigrid.solve, s.multigrid.solve_cycle = counted, cycle
         st = s.solve(V0, method=method, tol=1e-12, max_iter=12)
         assert st.iterations == ref[method].iterations == 12 and all(guesses)
-        assert np.abs(st.points - ref[method].points).max() < 1e-9 * size
-        np.testing.assert_allclose(st.energies, ref[method].energies, rtol=1e-9)
+        if method == "plain":
+            assert np.abs(st.points - ref[method].points).max() < 1e-9 * size
+            np.testing.assert_allclose(st.energies, ref[method].energies, rtol=1e-9)
+        else:
+            # Anderson's least squares on the iterates' differences magnify any difference in the solves about
+            # tenfold an iteration (measured, energies against the factorised run: 2e-13, 4e-13, 7e-12, 1e-10,
+            # 6e-11, 9e-10 ... 5e-8 at the 10th; with the solves to 1e-13 instead of 1e-11, 1.3e-9), where the
+            # plain alternation stays within 1e-12: its first six iterations are held to 1e-9, all to 1e-6
+            assert np.abs(st.points - ref[method].points).max() < 1e-7 * size
+            np.testing.assert_allclose(st.energies[:6], ref[method].energies[:6], rtol=1e-9)
+            np.testing.assert_allclose(st.energies, ref[method].energies, rtol=1e-6)
         # the assembly system at the last answer's rotations solved from zero, against the solves from guesses
         o = s.orient(st.points)
         rhs = s.assemble(o.Q, V0[s.pin], solve=False).b[s.free] - s.L_fp @ V0[s.pin][None, :]
         n = len(cycles)
         counted(rhs)
         cold = cycles[n]
-        # the first steps move the flat print most, and their guesses save little (measured 14, 14, 13, 12-13 against
-        # 15 from zero); from the fifth on every solve must be shorter than that one from zero
+        # the first steps move the flat print most, and their guesses save little (measured 11, 11, 10, 9-10 against
+        # 11-12 from zero); from the fifth on every solve must be shorter than that one from zero
         assert max(cycles[4:n]) < cold, (method, cycles)

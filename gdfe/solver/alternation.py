@@ -9,7 +9,7 @@ converged shape is a fixed point of the paper's alternation either way.
 Above :data:`gdfe.solver.MULTIGRID_CELLS` each assembly step is solved by multigrid CG to the same
 relative residual, started from the last move repeated (after an accepted Anderson mix, from the
 mixed iterate): the moves settle as the alternation converges, and the solve shortens (from zero it
-takes some 16 V-cycles at 10^5 cells; docs/solver_history.md).
+takes some 12 cycles at 10^5 cells, :meth:`gdfe.solver.multigrid.Multigrid.solve`; docs/solver_history.md).
 """
 
 from __future__ import annotations

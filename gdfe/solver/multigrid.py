@@ -8,7 +8,15 @@ the classical recipe works: coarsen 2 x 2 in the plane, interpolate bilinearly
 (holes in the film and the pinned vertex need no special care), smooth with damped
 Jacobi, and factorise the coarsest level. One V-cycle (:meth:`Multigrid.vcycle`) is a
 symmetric positive definite approximation of ``L_ff^{-1}`` at a few matrix products'
-cost; :meth:`Multigrid.solve` iterates it inside conjugate gradients to a tolerance.
+cost: the Newton-CG's preconditioner. :meth:`Multigrid.solve` iterates a cycle with a
+stronger smoothing on the coarser levels inside conjugate gradients to a tolerance
+(:meth:`Multigrid.solve_cycle`): a degree-2 Chebyshev polynomial in the Jacobi-weighted
+matrix, which damps the upper three quarters of the spectrum to 9/41 of themselves where one
+Jacobi sweep leaves 2/3. It costs two products a side instead of one, so the finest level,
+whose products are most of a cycle's cost, keeps its Jacobi sweep: on the 10^5 sheets and
+the 10^6 corrugation a solve to 1e-11 took 12 cycles instead of 16, 10-19 % less time (with
+Chebyshev on every level 9-10 cycles, 5-17 %). As the Newton-CG's preconditioner the
+stronger cycle saved CG iterations but not time (docs/solver_history.md).
 
 The layers through the film are coarsened too, once a level's in-plane spacing is
 :data:`MG_ASPECT` times its layer spacing (in lattice units; two layers of vertices become
@@ -34,7 +42,8 @@ from gdfe.mesh import _HEX_OFFSETS
 from gdfe.solver.linalg import factorise
 from gdfe.solver.threads import RowBlocks
 
-__all__ = ["MULTIGRID_CELLS", "MG_COARSEST", "MG_SMOOTHING", "MG_ASPECT", "lattice", "prolongation", "Multigrid"]
+__all__ = ["MULTIGRID_CELLS", "MG_COARSEST", "MG_SMOOTHING", "MG_ASPECT", "MG_SOLVE_RATIO", "MG_CHEBYSHEV_FROM",
+           "lattice", "prolongation", "chebyshev2", "Multigrid"]
 
 #: Designs above this many cells solve the assembly step with the multigrid (in CG) and
 #: precondition the Newton steps with one V-cycle, instead of factorising ``L_ff``
@@ -43,14 +52,42 @@ MULTIGRID_CELLS = 20_000
 
 #: Levels are coarsened until one has at most this many vertices; it is factorised.
 MG_COARSEST = 4000
-#: Damped-Jacobi sweeps before and after each coarse correction: one (V(1,1)) took 8% less time
-#: than two on the 10^5-cell corrugation's Newton-CG (79 CG iterations against 64, each cheaper)
-#: and as long in a solve to 1e-11.
+#: Damped-Jacobi sweeps before and after each coarse correction of :meth:`Multigrid.vcycle`: one
+#: (V(1,1)) took 8% less time than two on the 10^5-cell corrugation's Newton-CG (79 CG iterations
+#: against 64, each cheaper) and as long in a solve to 1e-11 (11 cycles against 16).
 MG_SMOOTHING = 1
+#: The smoothing of :meth:`Multigrid.solve`'s cycle is a degree-2 Chebyshev polynomial on the upper
+#: part of the Jacobi-weighted spectrum, from its top over this ratio to its top (:func:`chebyshev2`):
+#: 4 is the part one Jacobi sweep of weight 4 / (3 lambda_max) smooths. On the 10^5 corrugation
+#: 2.5, 3, 4, 5 and 7 all took 10 cycles to 1e-11 (twist: 10, 10, 9, 9, 10), with it on every level.
+MG_SOLVE_RATIO = 4
+#: ... on the levels from this one down (0 is the finest); the levels above keep one Jacobi sweep a side.
+#: Solves to 1e-11 (3 columns, medians of 5 alternating runs, ``solve_heap``): the 10^5 corrugation
+#: 0.681 s in 16 cycles with Jacobi everywhere, 0.647 s in 10 from 0, 0.615 s in 12 from 1; the 10^5
+#: twist 0.668, 0.556 (9), 0.540 s (12); the 10^6 corrugation 6.21, 5.86 (10), 5.05 s (12).
+MG_CHEBYSHEV_FROM = 1
 #: The layers are coarsened with the plane once a level's in-plane spacing is this many
 #: times its layer spacing (lattice units): semi-coarsening keeps the levels near isotropic.
 MG_ASPECT = 2
 
+
+
+def chebyshev2(ratio=MG_SOLVE_RATIO, top=4.0 / 3.0):
+    """The degree-2 Chebyshev smoothing ``x = (a I - c W A) W r`` for a residual ``r``: ``(a, c)``.
+
+    ``W`` is the damped-Jacobi weight over the diagonal, ``w D^-1``, so that the spectrum of
+    ``W A`` reaches ``top`` (``w = 4 / (3 lambda_max)``: 4/3). The error after the smoothing is
+    ``1 - a mu + c mu^2`` times itself along an eigenvector of ``W A`` with eigenvalue ``mu``:
+    the Chebyshev polynomial of degree 2 on ``[top / ratio, top]``, scaled to 1 at ``mu = 0``,
+    whose largest size on that interval, ``1 / T2(theta / delta)``, is the least of any such
+    polynomial (9/41 for ``ratio`` 4, where one Jacobi sweep leaves ``max |1 - mu|`` = 2/3).
+    The factor stays below 1 up to ``a / c`` (5/3 for ``ratio`` 4), a margin over the estimate
+    of ``lambda_max``.
+    """
+    lo = top / ratio
+    theta, delta = (top + lo) / 2.0, (top - lo) / 2.0
+    scale = 2.0 * theta * theta - delta * delta
+    return 4.0 * theta / scale, 2.0 / scale
 
 
 def lattice(mesh):
@@ -144,7 +181,8 @@ class Multigrid:
     coarsest : int, optional
         Coarsen until a level has at most this many unknowns (default :data:`MG_COARSEST`).
     smoothing : int
-        Jacobi sweeps before and after each coarse correction.
+        Jacobi sweeps before and after each coarse correction of :meth:`vcycle` (:meth:`solve_cycle`
+        smooths as :data:`MG_CHEBYSHEV_FROM` says).
     aspect : float
         Coarsen the layers too once the in-plane spacing is this many times theirs (:data:`MG_ASPECT`).
 
@@ -180,6 +218,7 @@ class Multigrid:
         self.coarse = factorise(A)
         self.coarse_size = A.shape[0]
         self.smoothing = int(smoothing)
+        self.chebyshev = chebyshev2()
 
     @property
     def n(self) -> int:
@@ -237,14 +276,51 @@ class Multigrid:
             x += jacobi(x)
         return x
 
+    def solve_cycle(self, b):
+        """One V-cycle from zero for ``b`` ``(n,)`` or ``(n, r)``, in double precision: :meth:`solve`'s preconditioner.
+
+        The same coarse corrections as :meth:`vcycle`; before and after each, on the levels from
+        :data:`MG_CHEBYSHEV_FROM` down, the degree-2 Chebyshev smoothing ``(a I - c W A) W r`` of
+        the residual ``r`` (:func:`chebyshev2`; ``W`` the Jacobi weight over the diagonal), and
+        one Jacobi sweep ``W r`` on the levels above. Each level smooths before and after with
+        the one symmetric matrix, so the cycle is symmetric; it is positive definite while ``W A``'s
+        spectrum stays below ``a / c``.
+        """
+        return self._solve_cycle(np.asarray(b, np.float64), 0)
+
+    def _solve_cycle(self, b, level):
+        levels = self._double
+        if level == len(levels):
+            return self.coarse.solve(np.asfortranarray(b))
+        A, P, wd = levels[level]
+        wd = wd[:, None] if b.ndim == 2 else wd
+        a, c = self.chebyshev if level >= MG_CHEBYSHEV_FROM else (1.0, 0.0)
+
+        def smoothed(r, own):  # (a I - c W A) W r, in r's array where the caller gives it up (own)
+            s = np.multiply(r, wd, out=r if own else None)
+            if c:
+                t = A @ s
+                t *= wd
+                t *= -c
+                s *= a
+                s += t
+            return s
+
+        x = smoothed(b, False)
+        t = A @ x
+        x += P @ self._solve_cycle(P.T @ np.subtract(b, t, out=t), level + 1)
+        t = A @ x
+        x += smoothed(np.subtract(b, t, out=t), True)
+        return x
+
     def solve(self, b, rtol=1e-11, max_iter=100, x0=None):
-        """``A^{-1} b`` by conjugate gradients preconditioned with :meth:`vcycle`, column by column together.
+        """``A^{-1} b`` by conjugate gradients preconditioned with :meth:`solve_cycle`, column by column together.
 
         Stops when every column's residual is below ``rtol`` times its right-hand side's
         norm; raises ``RuntimeError`` when ``max_iter`` iterations do not get there. ``x0``
         (shaped like ``b``), a guess to start from: the same test, met in fewer iterations
         the nearer it is (a Newton solve's last plain step from its converged iterate: 3 V-cycles
-        against 15 from zero on the 10^5-cell corrugation).
+        against 15 from zero on the 10^5-cell corrugation, with :meth:`vcycle` then).
         """
         b = np.asarray(b, float)
         one = b.ndim == 1
@@ -263,7 +339,7 @@ class Multigrid:
             X = x0.reshape(B.shape).copy()
             R = B - A @ X
         stop = rtol * np.linalg.norm(B, axis=0)
-        Z = self.vcycle(R)
+        Z = self.solve_cycle(R)
         Pd = Z.copy()
         rz = np.einsum("ij,ij->j", R, Z)
         for _ in range(max_iter):
@@ -274,7 +350,7 @@ class Multigrid:
             alpha = np.where(pap > 0, rz / np.where(pap > 0, pap, 1.0), 0.0)
             X += alpha * Pd
             R -= alpha * AP
-            Z = self.vcycle(R)
+            Z = self.solve_cycle(R)
             rz_new = np.einsum("ij,ij->j", R, Z)
             Pd = Z + np.where(rz > 0, rz_new / np.where(rz > 0, rz, 1.0), 0.0) * Pd
             rz = rz_new
