@@ -252,7 +252,7 @@ def test_the_alternation_starts_each_multigrid_solve_near_its_answer(monkeypatch
         s = Solver(des)
         assert s.uses_multigrid
         cycles, guesses = [], []
-        solve, vcycle = s.multigrid.solve, s.multigrid.solve_cycle
+        solve, solve_cycle = s.multigrid.solve, s.multigrid.solve_cycle
 
         def counted(b, *args, x0=None, **kwargs):
             cycles.append(0)
@@ -261,7 +261,7 @@ def test_the_alternation_starts_each_multigrid_solve_near_its_answer(monkeypatch
 
         def cycle(r, *args, **kwargs):
             cycles[-1] += 1
-            return vcycle(r, *args, **kwargs)
+            return solve_cycle(r, *args, **kwargs)
         s.multigrid.solve, s.multigrid.solve_cycle = counted, cycle
         st = s.solve(V0, method=method, tol=1e-12, max_iter=12)
         assert st.iterations == ref[method].iterations == 12 and all(guesses)
