@@ -59,7 +59,10 @@ MG_SMOOTHING = 1
 #: The smoothing of :meth:`Multigrid.solve`'s cycle is a degree-2 Chebyshev polynomial on the upper
 #: part of the Jacobi-weighted spectrum, from its top over this ratio to its top (:func:`chebyshev2`):
 #: 4 is the part one Jacobi sweep of weight 4 / (3 lambda_max) smooths. On the 10^5 corrugation
-#: 2.5, 3, 4, 5 and 7 all took 10 cycles to 1e-11 (twist: 10, 10, 9, 9, 10), with it on every level.
+#: 2.5, 3, 4, 5 and 7 all took 10 cycles to 1e-11 (twist: 10, 10, 9, 9, 10), with it on every level; below the
+#: finest level 2, 3, 4, 6, 8 and 12 took 13, 13, 12, 11, 11 and 11 (twist: 13, 12, 12, 11, 11, 11). A wider
+#: interval leaves less margin over the estimate of lambda_max (``a / c``: 5/3 of it at 4, 1.56 at 6, 1.5 at 8),
+#: so 4 is kept for the cycle's positive definiteness.
 MG_SOLVE_RATIO = 4
 #: ... on the levels from this one down (0 is the finest); the levels above keep one Jacobi sweep a side.
 #: Solves to 1e-11 (3 columns, medians of 5 alternating runs, ``solve_heap``): the 10^5 corrugation
@@ -81,8 +84,8 @@ def chebyshev2(ratio=MG_SOLVE_RATIO, top=4.0 / 3.0):
     the Chebyshev polynomial of degree 2 on ``[top / ratio, top]``, scaled to 1 at ``mu = 0``,
     whose largest size on that interval, ``1 / T2(theta / delta)``, is the least of any such
     polynomial (9/41 for ``ratio`` 4, where one Jacobi sweep leaves ``max |1 - mu|`` = 2/3).
-    The factor stays below 1 up to ``a / c`` (5/3 for ``ratio`` 4), a margin over the estimate
-    of ``lambda_max``.
+    The factor stays below 1 up to ``a / c`` (5/3 for ``ratio`` 4: 1.25 times ``top``), a margin
+    over the estimate of ``lambda_max``.
     """
     lo = top / ratio
     theta, delta = (top + lo) / 2.0, (top - lo) / 2.0
