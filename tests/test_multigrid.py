@@ -104,7 +104,7 @@ def test_every_level_spectrum_lies_below_the_top_the_smoothings_assume():
     """The damped-Jacobi weight and the solve cycle's Chebyshev polynomial both take ``1.05`` times the power
     iteration's estimate of ``lambda_max(D^-1 A)`` for the top of the spectrum; the polynomial keeps the cycle
     positive definite up to 1.25 times that top. Measured, the true largest eigenvalue over that top, by level:
-    0.959, 0.997, 0.975, 0.979 on this slotted disc of four layers of cells; 0.956-0.958, 0.991-0.997 on the 10^5
+    0.959, 0.997, 0.975, 0.979 on this slotted disc of three layers of cells; 0.956-0.958, 0.991-0.997 on the 10^5
     benchmark sheets."""
     x = (np.arange(60) + 0.5) / 60 - 0.5
     X, Y = np.meshgrid(x, x, indexing="ij")
