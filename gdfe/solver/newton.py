@@ -31,7 +31,7 @@ from gdfe.solver.linalg import Factoriser, factorise
 from gdfe.solver.multigrid import lattice
 from gdfe.solver.recycling import AugmentedCoarse, mostly_turn
 from gdfe.solver.rigid import turn_fit
-from gdfe.solver.threads import in_order, ranges, side_by_side
+from gdfe.solver.threads import RowBlocks, in_order, ranges, side_by_side
 
 __all__ = ["MU_MIN", "HESSIAN_FLOOR", "STEP_TOL_FACTOR", "ENERGY_ROUNDOFF", "CONTACT_ALPHAS", "CONTACT_EXACT_RES", "DRIFT_WINDOW",
            "DRIFT_ENERGY", "DRIFT_SHRINK", "ON_DRIFT", "RELEASE_POINTS", "CG_RTOL_MIN", "CG_RTOL_MAX", "CG_TARGET_MARGIN",
@@ -274,6 +274,12 @@ class CoarseSpace:
     def points(self, V):
         """The shape ``V`` ``(n, 3)`` [mm] at the coarse vertices: each one's weighted mean of the vertices it interpolates to, ``(k, 3)``."""
         return (self.Zt @ V) * self._inverse_weight[:, None]
+
+    @functools.cached_property
+    def products(self):
+        """``(Z, Zt)`` whose products with ``(n, 3)`` and ``(k, 3)`` arrays run on the solver's threads by rows
+        (:class:`gdfe.solver.threads.RowBlocks`: the same bits), for the coarse solve at every CG iteration."""
+        return RowBlocks(self.Z), RowBlocks(self.Zt)
 
     @functools.cached_property
     def _inverse_weight(self):
@@ -696,7 +702,7 @@ class ReducedHessian:
         """
         steps = self.steps
         cs = self.coarse
-        Z, Zt = cs.Z, cs.Zt
+        Z, Zt = cs.products
         fc = self.coarse_factor(lin, rest, mu, extra) if coarse_factor is None else coarse_factor
         if fc is None:
             return None

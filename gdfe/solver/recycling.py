@@ -79,7 +79,7 @@ class AugmentedCoarse:
     solve : callable
         ``A^{-1}`` of the grid's coarse matrix ``A = Z^T H Z``, on flat arrays of ``3 k``
         numbers laid out as ``(Zt @ r).ravel()``.
-    Z, Zt : sparse matrices
+    Z, Zt : sparse matrices, or :class:`gdfe.solver.threads.RowBlocks` of them
         The grid's interpolation ``(n, k)`` and its transpose, acting on ``(n, 3)`` arrays.
     apply_H : callable
         The Hessian product on ``(n, 3)`` arrays.
