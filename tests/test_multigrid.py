@@ -81,6 +81,18 @@ def test_chebyshev2_is_the_least_degree_2_polynomial_on_its_interval():
     assert 1.0 / (2.0 * (5.0 / 3.0) ** 2 - 1.0) == pytest.approx(9.0 / 41.0)
 
 
+def test_chebyshev2_takes_the_setting_when_called_and_refuses_an_empty_interval(monkeypatch):
+    """``MG_SOLVE_RATIO`` changed at run time is the one used (a default bound at import would ignore it), and a
+    ratio that leaves no interval, or a top that is not positive, is an error naming it."""
+    monkeypatch.setattr(sys.modules["gdfe.solver.multigrid"], "MG_SOLVE_RATIO", 10.0)
+    assert chebyshev2() == chebyshev2(10.0) != chebyshev2(4.0)
+    for ratio in (1.0, 0.5, -2.0, float("nan")):
+        with pytest.raises(gdfe.GdfeError, match="ratio"):
+            chebyshev2(ratio)
+    with pytest.raises(gdfe.GdfeError, match="top"):
+        chebyshev2(4.0, top=0.0)
+
+
 def test_the_solve_cycle_contracts_faster_than_the_preconditioner_cycle():
     """Stationary cycles on the 10^4-cell sheet's four levels. Measured: 0.243 per cycle with the Chebyshev
     smoothing of :meth:`Multigrid.solve_cycle` below the finest level, 0.182 with it on every level, 0.379 with

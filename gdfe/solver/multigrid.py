@@ -38,6 +38,7 @@ import functools
 import numpy as np
 import scipy.sparse as sp
 
+from gdfe._validation import check_number
 from gdfe.mesh import _HEX_OFFSETS
 from gdfe.solver.linalg import factorise
 from gdfe.solver.threads import RowBlocks
@@ -75,7 +76,7 @@ MG_ASPECT = 2
 
 
 
-def chebyshev2(ratio=MG_SOLVE_RATIO, top=4.0 / 3.0):
+def chebyshev2(ratio=None, top=4.0 / 3.0):
     """The degree-2 Chebyshev smoothing ``x = (a I - c W A) W r`` for a residual ``r``: ``(a, c)``.
 
     ``W`` is the damped-Jacobi weight over the diagonal, ``w D^-1``, so that the spectrum of
@@ -85,8 +86,11 @@ def chebyshev2(ratio=MG_SOLVE_RATIO, top=4.0 / 3.0):
     whose largest size on that interval, ``1 / T2(theta / delta)``, is the least of any such
     polynomial (9/41 for ``ratio`` 4, where one Jacobi sweep leaves ``max |1 - mu|`` = 2/3).
     The factor stays below 1 up to ``a / c`` (5/3 for ``ratio`` 4: 1.25 times ``top``), a margin
-    over the estimate of ``lambda_max``.
+    over the estimate of ``lambda_max``. ``ratio`` None: :data:`MG_SOLVE_RATIO` as it is when called.
     """
+    ratio = MG_SOLVE_RATIO if ratio is None else ratio
+    ratio = check_number("ratio", ratio, minimum=1.0, include_minimum=False)
+    top = check_number("top", top, minimum=0.0, include_minimum=False)
     lo = top / ratio
     theta, delta = (top + lo) / 2.0, (top - lo) / 2.0
     scale = 2.0 * theta * theta - delta * delta
