@@ -188,8 +188,8 @@ class Multigrid:
     coarsest : int, optional
         Coarsen until a level has at most this many unknowns (default :data:`MG_COARSEST`).
     smoothing : int
-        Jacobi sweeps before and after each coarse correction of :meth:`vcycle` (:meth:`solve_cycle`
-        smooths as :data:`MG_CHEBYSHEV_FROM` says).
+        Smoothing steps before and after each coarse correction: Jacobi sweeps in :meth:`vcycle`, and
+        in :meth:`solve_cycle` Chebyshev smoothings from :data:`MG_CHEBYSHEV_FROM` down.
     aspect : float
         Coarsen the layers too once the in-plane spacing is this many times theirs (:data:`MG_ASPECT`).
 
@@ -260,50 +260,31 @@ class Multigrid:
         that converts it where it puts it)."""
         return self._cycle(np.asarray(b, np.float32), 0, self._single)
 
-    def _cycle(self, b, level, levels):
+    def solve_cycle(self, b):
+        """One V-cycle from zero for ``b`` ``(n,)`` or ``(n, r)``, in double precision: :meth:`solve`'s preconditioner.
+
+        :meth:`vcycle`'s coarse corrections and smoothing steps, each step on the levels from
+        :data:`MG_CHEBYSHEV_FROM` down the degree-2 Chebyshev smoothing ``(a I - c W A) W r`` of the
+        residual ``r`` (:func:`chebyshev2`; ``W`` the Jacobi weight over the diagonal) instead of one
+        Jacobi sweep ``W r``. Each level smooths before and after with the one symmetric matrix, so
+        the cycle is symmetric; it is positive definite while ``W A``'s spectrum stays below ``a / c``.
+        """
+        return self._cycle(np.asarray(b, np.float64), 0, self._double, self.chebyshev)
+
+    def _cycle(self, b, level, levels, chebyshev=None):
+        """The V-cycle from ``level`` down; ``chebyshev``, ``(a, c)`` for the levels from
+        :data:`MG_CHEBYSHEV_FROM` down (:meth:`solve_cycle`), else Jacobi sweeps on every level."""
         if level == len(levels):
             return self.coarse.solve(np.asfortranarray(b, dtype=np.float64)).astype(b.dtype, copy=False)
         A, P, wd = levels[level]
         wd = wd[:, None] if b.ndim == 2 else wd
+        a, c = chebyshev if chebyshev is not None and level >= MG_CHEBYSHEV_FROM else (1.0, 0.0)
 
         def residual(x):  # b - A x, in the product's array (no temporary as large as the level)
             t = A @ x
             return np.subtract(b, t, out=t)
 
-        def jacobi(x):  # the damped Jacobi correction w (b - A x), in the same array
-            t = residual(x)
-            t *= wd
-            return t
-
-        x = wd * b
-        for _ in range(self.smoothing - 1):
-            x += jacobi(x)
-        x += P @ self._cycle(P.T @ residual(x), level + 1, levels)
-        for _ in range(self.smoothing):
-            x += jacobi(x)
-        return x
-
-    def solve_cycle(self, b):
-        """One V-cycle from zero for ``b`` ``(n,)`` or ``(n, r)``, in double precision: :meth:`solve`'s preconditioner.
-
-        The same coarse corrections as :meth:`vcycle`; before and after each, on the levels from
-        :data:`MG_CHEBYSHEV_FROM` down, the degree-2 Chebyshev smoothing ``(a I - c W A) W r`` of
-        the residual ``r`` (:func:`chebyshev2`; ``W`` the Jacobi weight over the diagonal), and
-        one Jacobi sweep ``W r`` on the levels above. Each level smooths before and after with
-        the one symmetric matrix, so the cycle is symmetric; it is positive definite while ``W A``'s
-        spectrum stays below ``a / c``.
-        """
-        return self._solve_cycle(np.asarray(b, np.float64), 0)
-
-    def _solve_cycle(self, b, level):
-        levels = self._double
-        if level == len(levels):
-            return self.coarse.solve(np.asfortranarray(b))
-        A, P, wd = levels[level]
-        wd = wd[:, None] if b.ndim == 2 else wd
-        a, c = self.chebyshev if level >= MG_CHEBYSHEV_FROM else (1.0, 0.0)
-
-        def smoothed(r, own):  # (a I - c W A) W r, in r's array where the caller gives it up (own)
+        def smoothed(r, own=True):  # (a I - c W A) W r (one Jacobi sweep's W r where c = 0), in r's array if own
             s = np.multiply(r, wd, out=r if own else None)
             if c:
                 t = A @ s
@@ -313,11 +294,12 @@ class Multigrid:
                 s += t
             return s
 
-        x = smoothed(b, False)
-        t = A @ x
-        x += P @ self._solve_cycle(P.T @ np.subtract(b, t, out=t), level + 1)
-        t = A @ x
-        x += smoothed(np.subtract(b, t, out=t), True)
+        x = smoothed(b, own=False)
+        for _ in range(self.smoothing - 1):
+            x += smoothed(residual(x))
+        x += P @ self._cycle(P.T @ residual(x), level + 1, levels, chebyshev)
+        for _ in range(self.smoothing):
+            x += smoothed(residual(x))
         return x
 
     def solve(self, b, rtol=1e-11, max_iter=100, x0=None):
