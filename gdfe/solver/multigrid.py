@@ -44,7 +44,7 @@ from gdfe.solver.linalg import factorise
 from gdfe.solver.threads import RowBlocks
 
 __all__ = ["MULTIGRID_CELLS", "MG_COARSEST", "MG_SMOOTHING", "MG_ASPECT", "MG_SOLVE_RATIO", "MG_CHEBYSHEV_FROM",
-           "lattice", "prolongation", "chebyshev2", "Multigrid"]
+           "JACOBI_TOP", "LAMBDA_MARGIN", "lattice", "prolongation", "chebyshev2", "Multigrid"]
 
 #: Designs above this many cells solve the assembly step with the multigrid (in CG) and
 #: precondition the Newton steps with one V-cycle, instead of factorising ``L_ff``
@@ -73,15 +73,23 @@ MG_CHEBYSHEV_FROM = 1
 #: The layers are coarsened with the plane once a level's in-plane spacing is this many
 #: times its layer spacing (lattice units): semi-coarsening keeps the levels near isotropic.
 MG_ASPECT = 2
+#: Every level's Jacobi weight is ``JACOBI_TOP / (LAMBDA_MARGIN lambda)`` over its diagonal, ``lambda`` the
+#: power iteration's estimate (12 steps) of ``lambda_max(D^-1 A)``: the weighted spectrum then reaches up to
+#: ``JACOBI_TOP`` (one sweep smooths its upper three quarters to 2/3 of themselves), and the margin covers
+#: the estimate's shortfall (the true ``lambda_max`` was 0.956-0.997 of the margined one on the benchmark
+#: sheets, tests/test_multigrid.py). :func:`chebyshev2`'s interval ends at the same top.
+JACOBI_TOP = 4.0 / 3.0
+LAMBDA_MARGIN = 1.05
 
 
 
-def chebyshev2(ratio=None, top=4.0 / 3.0):
+def chebyshev2(ratio=None, top=JACOBI_TOP):
     """The degree-2 Chebyshev smoothing ``x = (a I - c W A) W r`` for a residual ``r``: ``(a, c)``.
 
     ``W`` is the damped-Jacobi weight over the diagonal, ``w D^-1``, so that the spectrum of
-    ``W A`` reaches ``top`` (``w = 4 / (3 lambda_max)``: 4/3). The error after the smoothing is
-    ``1 - a mu + c mu^2`` times itself along an eigenvector of ``W A`` with eigenvalue ``mu``:
+    ``W A`` reaches ``top`` (:data:`JACOBI_TOP`: the multigrid's weight ``w = 4 / (3 lambda_max)``).
+    The error after the smoothing is ``1 - a mu + c mu^2`` times itself along an eigenvector of
+    ``W A`` with eigenvalue ``mu``:
     the Chebyshev polynomial of degree 2 on ``[top / ratio, top]``, scaled to 1 at ``mu = 0``,
     whose largest size on that interval, ``1 / T2(theta / delta)``, is the least of any such
     polynomial (9/41 for ``ratio`` 4, where one Jacobi sweep leaves ``max |1 - mu|`` = 2/3).
@@ -212,14 +220,15 @@ class Multigrid:
             if P.shape[1] >= A.shape[0]:  # nothing left to coarsen
                 break
             dinv = 1.0 / A.diagonal()
-            # damped Jacobi, weight 4 / (3 lambda_max(D^-1 A)): smooths the upper 3/4 of the spectrum
+            # damped Jacobi, weight JACOBI_TOP / lambda_max(D^-1 A): smooths the upper 3/4 of the spectrum
             x = rng.standard_normal(A.shape[0])
             lam = 1.0
             for _ in range(12):
                 y = dinv * (A @ x)
                 lam = float(np.linalg.norm(y) / np.linalg.norm(x))
                 x = y / np.linalg.norm(y)
-            self.levels.append((A, P, (4.0 / (3.0 * 1.05 * lam)) * dinv))
+            # JACOBI_TOP / (LAMBDA_MARGIN lam), as 4 / (3 LAMBDA_MARGIN lam): the weights' bits as they were
+            self.levels.append((A, P, (4.0 / (3.0 * LAMBDA_MARGIN * lam)) * dinv))
             A, ijk = (P.T @ A @ P).tocsr(), cijk
             ratio = ratio if layers else 2 * ratio
         self.coarse = factorise(A)
