@@ -464,8 +464,8 @@ def test_auto_checks_every_frame_once(monkeypatch):
     _ipctk()
     tested = []  # every shape the crossing test ran on, whether for the watch or for the check
     crossing = PenetrationCheck._crossing_pairs
-    monkeypatch.setattr(PenetrationCheck, "_crossing_pairs", lambda self, X, tri: tested.append(X.copy())
-                        or crossing(self, X, tri))
+    monkeypatch.setattr(PenetrationCheck, "_crossing_pairs", lambda self, X, tri, **kw: tested.append(X.copy())
+                        or crossing(self, X, tri, **kw))
     res = gdfe.simulate(gdfe.hinge(2.6, d=0.33), steps=3)
     assert not res.contact.used
     for V in res.frames[1:]:

@@ -13,9 +13,11 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from scipy.spatial import cKDTree
 
 import gdfe
 import gdfe.solver.windows as windows
+from gdfe.solver import nearby
 from gdfe.solver.penetration import PenetrationCheck
 from gdfe.solver.windows import EmbeddedWindows
 
@@ -183,3 +185,54 @@ def test_a_design_with_no_face_in_a_plane_of_the_print_has_no_blocks():
     assert w.n_blocks == 0 and (w.block == -1).all()
     good, boxes = w.good(pts, pts[:2], pts[2:])
     assert good.size == 0 and w.involved(good, boxes, pts[:2], pts[2:]).all()
+
+
+def _involved_by_every_pair(w, good, boxes, lo, hi):
+    """The definition of :meth:`EmbeddedWindows.involved`: every pair of boxes whose centres are
+    within the largest diameter, searched at once; those that overlap and share no good window."""
+    loose = np.nonzero(w.block < 0)[0]
+    plo, phi = np.concatenate([boxes[0], lo[loose]]), np.concatenate([boxes[1], hi[loose]])
+    blocks = np.concatenate([np.arange(w.n_blocks), np.full(loose.size, -1)])
+    centre, half = 0.5 * (plo + phi), 0.5 * np.linalg.norm(phi - plo, axis=1)
+    i, j = cKDTree(centre).query_pairs(2.0 * half.max(), output_type="ndarray").T
+    near = np.all((plo[i] <= phi[j]) & (plo[j] <= phi[i]), axis=1) & ~w.covered(good, blocks[i], blocks[j])
+    hit = np.zeros(len(plo), bool)
+    hit[i[near]] = hit[j[near]] = True
+    hit[:w.n_blocks] |= ~good[w._win].any(axis=1)
+    hit[w.n_blocks:] = True
+    out = np.ones(len(w.block), bool)  # a triangle in no block is always involved
+    out[w.block >= 0] = hit[w.block[w.block >= 0]]
+    return out
+
+
+def _involved_both_ways(des, X, budget):
+    """The involved triangles of the shape ``X``, searched in parts of ``budget`` pairs, and by every pair."""
+    check = PenetrationCheck(des)
+    T = X[check.tris]
+    lo, hi = T.min(axis=1), T.max(axis=1)
+    good, boxes = check.windows.good(X, lo, hi)
+    saved = nearby.PAIR_BUDGET
+    nearby.PAIR_BUDGET = budget  # hypothesis runs examples in one test call: no fixture between them
+    try:
+        got = check.windows.involved(good, boxes, lo, hi)
+    finally:
+        nearby.PAIR_BUDGET = saved
+    return got, _involved_by_every_pair(check.windows, good, boxes, lo, hi), check.windows.block >= 0
+
+
+@given(turns=st.floats(0.3, 3.0), gap=st.floats(-0.2, 0.06), seed=st.integers(0, 50), budget=st.sampled_from([50, 10**9]))
+def test_the_involved_triangles_are_those_every_pair_gives(turns, gap, seed, budget):
+    """Searched among the blocks not yet involved, in parts (of 50 pairs, or whole): the same triangles."""
+    des, X = _rolled(turns, gap, width=12, seed=seed)  # windows of 8 pixels across the strip
+    got, want, in_block = _involved_both_ways(des, X, budget)
+    assert np.array_equal(got, want)
+
+
+@pytest.mark.parametrize("budget", [50, 10**9])
+def test_a_flat_strip_leaves_blocks_out_as_every_pair_does(budget):
+    """The print itself: the faces' boxes apart across the thickness, the middle's blocks left out
+    (those at the strip's edges are in windows that are not rectangles)."""
+    des = gdfe.from_rows(["R" * 48] * 12, R=1.0, h=H, pixel=0.1, nz=2)
+    got, want, in_block = _involved_both_ways(des, des.mesh.points, budget)
+    assert np.array_equal(got, want)
+    assert 0 < got[in_block].sum() < in_block.sum()

@@ -34,7 +34,9 @@ and finds:
 :meth:`PenetrationCheck.crosses` makes the first test alone: ``contact="auto"`` asks it of the
 iterates of a contact-free solve, and the same check then checks the solved shape.
 
-The searches run in chunks (bounded memory at 10^6 cells) on the solver's threads
+Every search by distance is made in parts of bounded size (:mod:`gdfe.solver.nearby`), so that
+a shape that has passed through itself many times is checked in bounded memory too. The
+searches run in chunks (bounded memory at 10^6 cells) on the solver's threads
 (:func:`gdfe.solver.threads.workers`; 2 threads took the 10^5-cell twist's check 1.9 x faster on 2 cores);
 the answer does not depend on either.
 
@@ -57,6 +59,7 @@ from scipy.spatial import cKDTree
 from gdfe._validation import check_array, check_instance, check_positive
 from gdfe.design import Design
 from gdfe.io import surface_faces
+from gdfe.solver import nearby
 from gdfe.solver.threads import in_order
 from gdfe.solver.windows import EmbeddedWindows
 
@@ -79,6 +82,9 @@ _CHUNK = 65_536
 # the gap search's chunk of vertices: fine pixels put ~80 triangles of a face within its range of
 # every vertex (the Figure 8 plate at 25 um: 1.5 GiB for chunks of 65 536 vertices)
 _GAP_CHUNK = 8_192
+# pairs of a point and a cell tested this many at a time: a pair carries its cell's eight corners
+# (192 bytes) and more through the test
+_INSIDE_SLICE = 1 << 20
 # the six tetrahedra of a hexahedron (VTK order) about its diagonal 0-6
 _HEX_TETS = np.array([[0, 1, 2, 6], [0, 2, 3, 6], [0, 3, 7, 6], [0, 7, 4, 6], [0, 4, 5, 6], [0, 5, 1, 6]])
 
@@ -257,7 +263,7 @@ def _radius_classes(idx, cen, rad, split):
     for sel in (rad[idx] <= split, rad[idx] > split):
         part = idx[sel]
         if part.size:
-            out.append((part, cKDTree(cen[part]), float(rad[part].max())))
+            out.append((part, nearby.Tree(cen[part]), float(rad[part].max())))
     return out
 
 
@@ -268,12 +274,6 @@ def _halves_of_quadrilaterals(tris):
     q = len(tris) // 2
     return (2 * q == len(tris) and bool(np.array_equal(tris[:q, 0], tris[q:, 0]))
             and bool(np.array_equal(tris[:q, 2], tris[q:, 1])))
-
-
-def _pairs(tree_a, tree_b, r):
-    """Index pairs ``(i, j)`` with point ``i`` of ``tree_a`` within ``r`` of point ``j`` of ``tree_b``."""
-    m = tree_a.sparse_distance_matrix(tree_b, r, output_type="ndarray")
-    return m["i"].astype(np.int64), m["j"].astype(np.int64)
 
 
 class PenetrationCheck:
@@ -361,7 +361,7 @@ class PenetrationCheck:
         H = X[self.cells]
         hc = H.mean(axis=1)
         hrad = float(np.sqrt(np.max(np.sum((H - hc[:, None]) ** 2, axis=2))))
-        cell_tree = cKDTree(hc)
+        cell_tree = nearby.Tree(hc, radius=hrad)
         surf = self.surface
         _stage("boundary vertices inside the film")
         d_vert, hosts = self._inside_depth(X, X[surf], surf, surf, H, cell_tree, hrad, tri)
@@ -392,26 +392,42 @@ class PenetrationCheck:
         """Whether the boundary surface of the shape ``points`` ``(n, 3)`` [mm] crosses itself.
 
         The first test of :meth:`__call__` alone (crossing triangles, not the vertices inside the
-        film nor the gap): what ``contact="auto"`` asks of the shapes of a contact-free solve.
+        film nor the gap): what ``contact="auto"`` asks of the shapes of a contact-free solve. It
+        ends at the first part of the candidate pairs that has a crossing (:mod:`gdfe.solver.nearby`):
+        a shape rolled through itself many times is answered without listing all its pairs.
         """
         X = check_array("points", points, shape=(self.n, 3))
-        return self._crossing_pairs(X, self._triangles(X))[0].size > 0
+        return self._crossing_pairs(X, self._triangles(X), first=True)[0].size > 0
 
     def _triangles(self, X):
         """The boundary triangles at the shape ``X`` (:class:`_Triangles`)."""
         tris = self.tris
         return _Triangles(X[tris[:, 0]], X[tris[:, 1]], X[tris[:, 2]], quads=self._quads)
 
-    def _crossing_pairs(self, X, tri):
+    def _crossing_pairs(self, X, tri, first=False):
         """The crossing triangle pairs ``i``, ``j`` of the shape ``X`` and the ``(k, 2)`` edges that cross.
 
         The candidates are the pairs whose centroids are closer than their radii summed, less the
         pairs in one window of the print that the shape provably embeds (:mod:`gdfe.solver.windows`).
+        With ``first``, the search ends at the first part of the candidates (:meth:`_Triangles.close_pairs`)
+        that has a crossing: some crossings, not all (what :meth:`crosses` asks).
         """
         good, boxes = self.windows.good(X, tri.lo, tri.hi)
         involved = np.nonzero(self.windows.involved(good, boxes, tri.lo, tri.hi))[0]
-        found = _map(lambda pairs: self._crossings(X, tri, good, *pairs()), tri.close_pairs(involved),
-                     "crossing triangles, chunk")
+        done = threading.Event()
+
+        def test(pairs):
+            found = []
+            if done.is_set():
+                return found
+            for i, j in pairs():  # the next part is searched only after this test
+                found.append(self._crossings(X, tri, good, i, j))
+                if first and found[-1][0].size:
+                    done.set()
+                if done.is_set():
+                    break
+            return found
+        found = [f for part in _map(test, tri.close_pairs(involved), "crossing triangles, chunk") for f in part]
         none = [np.zeros(0, np.int64)]  # no triangle left to test: every pair proved apart
         i = np.concatenate([f[0] for f in found] or none)
         j = np.concatenate([f[1] for f in found] or none)
@@ -461,29 +477,32 @@ class PenetrationCheck:
                                                       cell_tree, hrad, tri), range(0, len(P), _CHUNK), "points inside")
             return np.concatenate([d for d, _ in parts]), np.concatenate([c for _, c in parts])
         out = np.zeros(len(P))
-        pi, ci = _pairs(cKDTree(P), cell_tree, hrad)
-        own = (self.cells[ci] == a[pi][:, None]).any(axis=1) | (self.cells[ci] == b[pi][:, None]).any(axis=1)
-        pi, ci = pi[~own], ci[~own]
-        inside = _inside_hexes(P[pi], H[ci])
-        pi, ci = pi[inside], ci[inside]
-        keep = ~(self.neighbours(a[pi], ci) | self.neighbours(b[pi], ci))
-        pi, ci = pi[keep], ci[keep]
+
+        def holding(pi, ci):  # the pairs of a point and a cell elsewhere in the film that holds it
+            own = (self.cells[ci] == a[pi][:, None]).any(axis=1) | (self.cells[ci] == b[pi][:, None]).any(axis=1)
+            pi, ci = pi[~own], ci[~own]
+            inside = _inside_hexes(P[pi], H[ci])
+            pi, ci = pi[inside], ci[inside]
+            keep = ~(self.neighbours(a[pi], ci) | self.neighbours(b[pi], ci))
+            return pi[keep], ci[keep]
+        held = [holding(pi[s:s + _INSIDE_SLICE], ci[s:s + _INSIDE_SLICE])
+                for pi, ci in nearby.between(cKDTree(P), cell_tree, hrad) for s in range(0, pi.size or 1, _INSIDE_SLICE)]
+        pi, ci = (np.concatenate([h[c] for h in held]) for c in (0, 1))
         if not pi.size:
             return out, ci
         k = np.unique(pi)
         d = np.full(k.size, np.inf)
         todo = np.arange(k.size)
         for r in (0.5 * hrad, 2.0 * hrad):  # most points are near a surface: a small search first
-            qi, tj = tri.pairs_with(P[k[todo]], r)
-            kk = k[todo][qi]
-            keep = ~(self.neighbours(a[kk], self.owner[tj]) | self.neighbours(b[kk], self.owner[tj]))
-            qi, tj = qi[keep], tj[keep]
-            if qi.size:
+            dd = np.full(todo.size, np.inf)
+            for qi, tj in tri.pairs_with(P[k[todo]], r):
+                kk = k[todo][qi]
+                keep = ~(self.neighbours(a[kk], self.owner[tj]) | self.neighbours(b[kk], self.owner[tj]))
+                qi, tj = qi[keep], tj[keep]
                 p = P[k[todo]][qi]
                 q = point_triangle_closest(p, tri.A[tj], tri.B[tj], tri.C[tj])
-                dd = np.full(todo.size, np.inf)
                 np.minimum.at(dd, qi, np.linalg.norm(p - q, axis=1))
-                d[todo] = dd
+            d[todo] = np.minimum(d[todo], dd)
             # a distance within r is the nearest; beyond it a triangle further out may be nearer
             todo = todo[~(d[todo] <= r)]
             if not todo.size:
@@ -541,7 +560,10 @@ class PenetrationCheck:
         def facing(part, within=np.inf):
             g = min(float(within), r)
             Xp, Np = X[part], vn[part]
-            vi, tj = tri.facing_candidates(Xp, Xp + r * Np, r, g)
+            found = [facing_pairs(part, Xp, Np, g, vi, tj) for vi, tj in tri.facing_candidates(Xp, Xp + r * Np, r, g)]
+            return tuple(np.concatenate([f[c] for f in found]) for c in range(3))
+
+        def facing_pairs(part, Xp, Np, g, vi, tj):  # the facing pairs among one part of the candidates
             u = tri.unit[tj]
             # cheap and necessary: the vertex in front of the triangle's plane and within range of
             # it (the plane is no further than the triangle, within round-off), and the ball about
@@ -660,20 +682,22 @@ class _Triangles:
         """Pairs ``(i, j)``, ``i != j``, of triangles whose centroids are within their classes' radii summed.
 
         Among the triangles ``subset`` (an index array) where given, else among all. Returns a
-        list of functions, each of which makes one part of the pairs as index arrays ``(i, j)``
-        (:data:`_CHUNK` triangles ``i`` at a time) when called; every pair is in one part, once.
+        list of functions, each of which yields the pairs of its :data:`_CHUNK` triangles ``i``
+        as index arrays ``(i, j)`` when called, in parts of at most :data:`gdfe.solver.nearby.PAIR_BUDGET`
+        pairs (:mod:`gdfe.solver.nearby`); every pair is in one part, once.
         """
         classes = self.classes if subset is None else self._classes(np.asarray(subset, np.int64))
+
         def within(ta, tb, r, ia, ib):
             def pairs():
-                u, v = _pairs(ta, tb, r)
-                return ia[u], ib[v]
+                for u, v in nearby.between(ta, tb, r):
+                    yield ia[u], ib[v]
             return pairs
 
         def own(ta, r, ia):
             def pairs():
-                uv = ta.query_pairs(r, output_type="ndarray").astype(np.int64)
-                return ia[uv[:, 0]], ia[uv[:, 1]]
+                for u, v in nearby.within(ta, r):
+                    yield ia[u], ia[v]
             return pairs
 
         tasks = []
@@ -693,7 +717,7 @@ class _Triangles:
 
     def pairs_with(self, points, r):
         """Pairs ``(k, t)`` of points and triangles closer than ``r``, and others (by the centroids of the triangles, or
-        of their quadrilaterals, with their class's radius)."""
+        of their quadrilaterals, with their class's radius), in parts (:meth:`_pairs_by_class`)."""
         tree = cKDTree(points)
         return self._pairs_by_class(lambda rad: (tree, r + rad))
 
@@ -705,7 +729,7 @@ class _Triangles:
         plus its class's radius of the centre, and within ``g`` plus it of the point: each class is
         searched about whichever covers less of a plane through the point tangent to the ball
         (``(g + rad)^2`` against ``2 r rad + rad^2``, the squared radii of the discs they cut from
-        it), so a small ``g`` leaves out most of the point's own face.
+        it), so a small ``g`` leaves out most of the point's own face. In parts (:meth:`_pairs_by_class`).
         """
         trees = {}
 
@@ -722,16 +746,13 @@ class _Triangles:
     def _pairs_by_class(self, about):
         """Pairs ``(k, t)`` of query points and triangles from the searches of :meth:`search_classes`'
         classes; ``about(rad)`` gives a class of radius ``rad`` the k-d tree of the query points and the
-        search's radius."""
+        search's radius. Yields them in parts, each from at most :data:`gdfe.solver.nearby.PAIR_BUDGET`
+        pairs of a search (:func:`gdfe.solver.nearby.between`)."""
         classes, q = self.search_classes()
-        out_k, out_t = [], []
         for idx, t, rad in classes:
             tree, radius = about(rad)
-            u, v = _pairs(tree, t, radius)
-            u, v = self._as_triangles(u, idx[v], q)
-            out_k.append(u)
-            out_t.append(v)
-        return np.concatenate(out_k), np.concatenate(out_t)
+            for u, v in nearby.between(tree, t, radius):
+                yield self._as_triangles(u, idx[v], q)
 
 
 def check_penetration(points, design, gap_range=None) -> Penetration:

@@ -34,6 +34,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from gdfe.solver import nearby
+
 __all__ = ["BLOCK_CELLS", "GOOD_MARGIN", "EmbeddedWindows"]
 
 #: Pixels along each side of a block; a window is 2 x 2 blocks. At the converged 10^5-cell
@@ -224,7 +226,10 @@ class EmbeddedWindows:
         ``boxes`` is :meth:`good`'s block boxes; ``lo``, ``hi`` the triangles' boxes ``(t, 3)``
         at the shape. A triangle in a block is involved when its block's box overlaps the box of
         a block not covered with it by a good window, or of a triangle in no block; those are
-        always involved.
+        always involved, and so is every triangle of a block none of whose windows is good.
+        Only a pair with a box not yet involved can add one, so only those pairs are searched
+        (a block with a good window against every box), in parts of bounded size
+        (:mod:`gdfe.solver.nearby`).
         """
         t = len(self.tris)
         loose = np.nonzero(self.block < 0)[0]
@@ -233,14 +238,27 @@ class EmbeddedWindows:
         phi = np.concatenate([boxes[1], hi[loose]])
         blocks = np.concatenate([np.arange(nb), np.full(loose.size, -1)])
         centre, half = 0.5 * (plo + phi), 0.5 * np.linalg.norm(phi - plo, axis=1)
-        pairs = cKDTree(centre).query_pairs(2.0 * float(half.max(initial=0.0)), output_type="ndarray")
-        i, j = pairs[:, 0].astype(np.int64), pairs[:, 1].astype(np.int64)
-        near = np.all((plo[i] <= phi[j]) & (plo[j] <= phi[i]), axis=1) & ~self.covered(good, blocks[i], blocks[j])
-        hit = np.zeros(len(plo), bool)
-        hit[i[near]] = True
-        hit[j[near]] = True
-        hit[:nb] |= ~good[self._win].any(axis=1)  # a block is covered with itself where one of its windows is good
-        hit[nb:] = True  # the other triangles are always tested
+        r = 2.0 * float(half.max(initial=0.0))
+        hit = np.ones(len(plo), bool)  # the other triangles are always tested
+        hit[:nb] = ~good[self._win].any(axis=1)  # a block is covered with itself where one of its windows is good
+
+        def mark(i, j):  # pairs of boxes that involve both: apart by no good window, boxes that overlap
+            todo = ~(hit[i] & hit[j])  # two involved already add nothing
+            i, j = i[todo], j[todo]
+            meet = np.all((plo[i] <= phi[j]) & (plo[j] <= phi[i]), axis=1)
+            i, j = i[meet], j[meet]
+            near = ~self.covered(good, blocks[i], blocks[j])
+            hit[i[near]] = True
+            hit[j[near]] = True
+        ask = np.nonzero(~hit)[0]
+        if ask.size:
+            for u, v in nearby.within(cKDTree(centre[ask]), r):
+                mark(ask[u], ask[v])
+            rest = np.nonzero(hit)[0]
+            ask = ask[~hit[ask]]  # those the pairs among them left uninvolved, against the others
+            if ask.size and rest.size:
+                for u, v in nearby.between(cKDTree(centre[ask]), cKDTree(centre[rest]), r):
+                    mark(ask[u], rest[v])
         out = np.zeros(t, bool)
         out[self._zt] = hit[self.block[self._zt]]
         out[loose] = True
