@@ -416,7 +416,7 @@ class PenetrationCheck:
         involved = np.nonzero(self.windows.involved(good, boxes, tri.lo, tri.hi))[0]
         done = threading.Event()
 
-        def test(pairs):
+        def crossings_of(pairs):
             found = []
             if done.is_set():
                 return found
@@ -427,7 +427,7 @@ class PenetrationCheck:
                 if done.is_set():
                     break
             return found
-        found = [f for part in _map(test, tri.close_pairs(involved), "crossing triangles, chunk") for f in part]
+        found = [f for part in _map(crossings_of, tri.close_pairs(involved), "crossing triangles, chunk") for f in part]
         none = [np.zeros(0, np.int64)]  # no triangle left to test: every pair proved apart
         i = np.concatenate([f[0] for f in found] or none)
         j = np.concatenate([f[1] for f in found] or none)
@@ -485,8 +485,10 @@ class PenetrationCheck:
             pi, ci = pi[inside], ci[inside]
             keep = ~(self.neighbours(a[pi], ci) | self.neighbours(b[pi], ci))
             return pi[keep], ci[keep]
-        held = [holding(pi[s:s + _INSIDE_SLICE], ci[s:s + _INSIDE_SLICE])
-                for pi, ci in nearby.between(cKDTree(P), cell_tree, hrad) for s in range(0, pi.size or 1, _INSIDE_SLICE)]
+        held = []
+        for pi, ci in nearby.between(cKDTree(P), cell_tree, hrad):
+            for s in range(0, max(pi.size, 1), _INSIDE_SLICE):
+                held.append(holding(pi[s:s + _INSIDE_SLICE], ci[s:s + _INSIDE_SLICE]))
         pi, ci = (np.concatenate([h[c] for h in held]) for c in (0, 1))
         if not pi.size:
             return out, ci
@@ -499,6 +501,8 @@ class PenetrationCheck:
                 kk = k[todo][qi]
                 keep = ~(self.neighbours(a[kk], self.owner[tj]) | self.neighbours(b[kk], self.owner[tj]))
                 qi, tj = qi[keep], tj[keep]
+                if not qi.size:
+                    continue
                 p = P[k[todo]][qi]
                 q = point_triangle_closest(p, tri.A[tj], tri.B[tj], tri.C[tj])
                 np.minimum.at(dd, qi, np.linalg.norm(p - q, axis=1))
