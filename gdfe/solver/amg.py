@@ -33,6 +33,7 @@ import scipy.sparse as sp
 
 from gdfe._validation import GdfeError, check_int
 from gdfe.solver import device as _device
+from gdfe.solver.multigrid import jacobi_weight
 
 __all__ = ["AMG_MAX_COARSE", "AMG_REBUILD_CG", "available", "BlockPattern", "hessian_blocks", "rigid_modes",
            "HessianAMG", "CoarseAMG"]
@@ -234,7 +235,7 @@ class HessianAMG:
         for lvl in ml.levels[:-1]:
             Dinv = _block_inverse_diagonal(lvl.A)
             lam = _spectral_radius(lvl.A, Dinv, rng)
-            weight = 4.0 / (3.0 * 1.05 * lam)
+            weight = jacobi_weight(lam)
             self.levels.append((_device.to_device_sparse(lvl.A.tocsr(), xp),
                                 _device.to_device_sparse(lvl.P.tocsr(), xp),
                                 _device.to_device_sparse(lvl.R.tocsr(), xp),

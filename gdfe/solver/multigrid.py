@@ -44,7 +44,7 @@ from gdfe.solver.linalg import factorise
 from gdfe.solver.threads import RowBlocks
 
 __all__ = ["MULTIGRID_CELLS", "MG_COARSEST", "MG_SMOOTHING", "MG_ASPECT", "MG_SOLVE_RATIO", "MG_CHEBYSHEV_FROM",
-           "JACOBI_TOP", "LAMBDA_MARGIN", "lattice", "prolongation", "chebyshev2", "Multigrid"]
+           "JACOBI_TOP", "LAMBDA_MARGIN", "jacobi_weight", "lattice", "prolongation", "chebyshev2", "Multigrid"]
 
 #: Designs above this many cells solve the assembly step with the multigrid (in CG) and
 #: precondition the Newton steps with one V-cycle, instead of factorising ``L_ff``
@@ -80,6 +80,13 @@ MG_ASPECT = 2
 #: sheets, tests/test_multigrid.py). :func:`chebyshev2`'s interval ends at the same top.
 JACOBI_TOP = 4.0 / 3.0
 LAMBDA_MARGIN = 1.05
+
+
+def jacobi_weight(lam):
+    """The damped-Jacobi weight for a power-iteration estimate ``lam`` of ``lambda_max(D^-1 A)``:
+    ``JACOBI_TOP / (LAMBDA_MARGIN lam)`` (:class:`Multigrid`'s levels, and
+    :class:`gdfe.solver.amg.HessianAMG`'s over its block diagonal)."""
+    return JACOBI_TOP / (LAMBDA_MARGIN * lam)
 
 
 
@@ -227,8 +234,7 @@ class Multigrid:
                 y = dinv * (A @ x)
                 lam = float(np.linalg.norm(y) / np.linalg.norm(x))
                 x = y / np.linalg.norm(y)
-            # JACOBI_TOP / (LAMBDA_MARGIN lam), as 4 / (3 LAMBDA_MARGIN lam): the weights' bits as they were
-            self.levels.append((A, P, (4.0 / (3.0 * LAMBDA_MARGIN * lam)) * dinv))
+            self.levels.append((A, P, jacobi_weight(lam) * dinv))
             A, ijk = (P.T @ A @ P).tocsr(), cijk
             ratio = ratio if layers else 2 * ratio
         self.coarse = factorise(A)
