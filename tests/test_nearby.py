@@ -8,8 +8,6 @@ penetration check gives the same answer with a budget small enough to cut its se
 strip rolled tightly through itself, and answers its yes-or-no test without searching every part.
 """
 
-import math
-
 import numpy as np
 import pytest
 from hypothesis import given
@@ -51,13 +49,12 @@ def test_the_bound_is_at_least_scipy_count(shift, seed, n, m, spread, on_faces, 
     each = np.array([len(x) for x in tb.query_ball_point(a, r)])
     quick, fine = nearby.point_bounds(ta, tb, r), nearby.point_bounds(ta, tb, r, fine=True)
     assert np.all(quick >= fine) and np.all(fine >= each)
-    assert nearby.pair_bound(ta, tb, r) >= ta.count_neighbors(tb, r)
-    assert nearby.pair_bound(ta, ta, r) >= ta.count_neighbors(ta, r)
+    assert np.all(nearby.point_bounds(ta, ta, r) >= [len(x) for x in ta.query_ball_point(a, r)])
     kept = nearby.Tree(b)
     assert np.all(nearby.point_bounds(ta, kept, r) >= each)
     assert np.all(nearby.point_bounds(ta, kept, 0.6 * r, fine=True) >= [len(x) for x in tb.query_ball_point(a, 0.6 * r)])
     grid = kept.grid(r)
-    assert nearby.pair_bound(ta, kept, 0.6 * r) >= ta.count_neighbors(tb, 0.6 * r)
+    assert nearby.point_bounds(ta, kept, 0.6 * r).sum() >= ta.count_neighbors(tb, 0.6 * r)
     assert kept.grid(r) is grid and grid.side >= r
     own = nearby.Tree(b, radius=r)  # a grid of cubes of the search's own distance
     assert own.grid(r).side == r and np.all(nearby.point_bounds(ta, own, r, fine=True) >= each)
@@ -102,7 +99,7 @@ def test_a_distance_too_small_for_the_cubes_is_counted_instead():
     rng = np.random.default_rng(0)
     a = np.concatenate([np.zeros((40, 3)), rng.uniform(-1e6, 1e6, (40, 3))])
     t = cKDTree(a)
-    assert nearby.pair_bound(t, t, 1e-9) == math.inf
+    assert nearby.point_bounds(t, t, 1e-9) is None
     parts = _parts_checked(nearby.within(t, 1e-9, budget=100), 100)
     assert len(parts) > 1 and sum(p[0].size for p in parts) == 40 * 39 // 2
 
@@ -140,7 +137,7 @@ def test_the_check_is_the_same_with_its_searches_cut(monkeypatch, turns, gap):
     sizes = _spy(monkeypatch, 500)
     assert check(X) == whole
     assert check.crosses(X) == crosses == whole.found
-    assert len(sizes) > 10  # cut
+    assert len(sizes) > 10  # cut: of 500 pairs, every one of these checks has more than 10 parts
 
 
 def test_a_strip_rolled_many_times_through_itself_is_answered_from_its_first_parts(monkeypatch):
@@ -155,5 +152,5 @@ def test_a_strip_rolled_many_times_through_itself_is_answered_from_its_first_par
     first = len(sizes)
     sizes.clear()
     p = check(X)
-    assert p.found and p.intersecting_pairs > 100
-    assert 5 * first < len(sizes)
+    assert p.found and p.intersecting_pairs > 100  # 180 crossing pairs, 1 200 cells, 0.1 mm deep when written
+    assert 5 * first < len(sizes)  # 2 parts against 263 when written

@@ -29,7 +29,7 @@ import threading
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ["FEW", "PAIR_BUDGET", "PART_POINTS", "Tree", "between", "pair_bound", "point_bounds", "within"]
+__all__ = ["FEW", "PAIR_BUDGET", "PART_POINTS", "Tree", "between", "point_bounds", "within"]
 
 #: The most pairs a part holds: 8.4 million, 200 MiB as SciPy lists them (two indices and a
 #: distance, 24 bytes a pair), about as much again while the caller tests them. Of the 10^5-cell
@@ -79,7 +79,7 @@ class _Grid:
         self.step = np.array([span[1] * span[2], span[2], 1])  # a cube's neighbour along x, y, z
         self.mask = (1 << int(2 * tree.n).bit_length()) - 1  # a table of a power of two entries, 2 a point or more
         self.table = np.bincount(self._keys(tree.data)[0] & self.mask, minlength=self.mask + 1).astype(np.int32)
-        summed = self.table
+        summed = self.table.astype(np.int64)  # 27 cubes' counts: over 2^31 from 80 million points
         for step in self.step[::-1]:  # a neighbour's entry is ``step`` further on, modulo the table's size
             summed = _with_neighbours(summed, int(step))
         self.summed = summed
@@ -166,13 +166,6 @@ def point_bounds(tree_a, tree_b, r, fine=False):
     return None if grid.table is None else grid.bounds(tree_a.data, r if fine else None)
 
 
-def pair_bound(tree_a, tree_b, r):
-    """An upper bound of the pairs ``(i, j)`` with point ``i`` of ``tree_a`` within ``r`` of point
-    ``j`` of ``tree_b``: the sum of :func:`point_bounds`, infinite where they are None."""
-    bounds = point_bounds(tree_a, tree_b, r)
-    return np.inf if bounds is None else int(bounds.sum())
-
-
 #: A search over the budget is cut by its points' bounds where that makes parts of this many points
 #: or more on average; else (a bound far above the budget, or none) its pairs are counted, and it is
 #: cut by each point's own count (:meth:`scipy.spatial.cKDTree.query_ball_point`, twice a count's time).
@@ -187,17 +180,15 @@ def _sizes(tree_a, tree_b, r, budget, pairs):
     pairs (``pairs`` turns ordered pairs into the search's), else each query point's pairs or more."""
     if pairs(tree_a.n * tree_b.n) <= budget:
         return None
-    if isinstance(tree_b, Tree) or tree_b.n <= FEW * tree_a.n:
-        for fine in (False, True):
-            bounds = point_bounds(tree_a, tree_b, r, fine)
-            if bounds is None:
-                break
-            total = int(bounds.sum())
-            if pairs(total) <= budget:
-                return None
-        else:
-            if tree_a.n * budget >= PART_POINTS * total:
-                return bounds
+    if (isinstance(tree_b, Tree) or tree_b.n <= FEW * tree_a.n) and (quick := point_bounds(tree_a, tree_b, r)) is not None:
+        if pairs(int(quick.sum())) <= budget:
+            return None
+        bounds = point_bounds(tree_a, tree_b, r, fine=True)
+        total = int(bounds.sum())
+        if pairs(total) <= budget:
+            return None
+        if tree_a.n * budget >= PART_POINTS * total:
+            return bounds
     if pairs(int(tree_a.count_neighbors(tree_b, r))) <= budget:
         return None
     return np.asarray(tree_b.query_ball_point(tree_a.data, r, return_length=True), np.int64)
