@@ -168,6 +168,16 @@ def check_poisson(name, value):
                         what="a Poisson's ratio in (-1, 0.5)")
 
 
+def data_float(text):
+    """The number a data file's cell ``text`` writes, by :class:`float`; :class:`ValueError` where only Python
+    reads it as one: with a digit separator (``1_50`` is 150 to Python, a typo or a pasted thousands
+    separator to a spreadsheet) or with digits of other scripts."""
+    t = str(text).strip()
+    if "_" in t or not t.isascii():
+        raise ValueError(f"not a plain decimal number: {text!r}")
+    return float(t)
+
+
 def check_int(name, value, minimum=1, maximum=None):
     """An integer (not a boolean, not a float) ``>= minimum`` (and ``<= maximum``)."""
     what = f"an integer >= {minimum}" + (f" and <= {maximum}" if maximum is not None else "")

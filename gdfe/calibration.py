@@ -42,7 +42,7 @@ import numpy as np
 
 from gdfe import paper
 from gdfe._validation import (LENGTH_RANGE, GdfeError, check_array, check_choice, check_file, check_int, check_number,
-                              check_positive, check_ratio, degenerate_tests, read_text)
+                              check_positive, check_ratio, data_float, degenerate_tests, read_text)
 
 log = logging.getLogger(__name__)
 
@@ -486,6 +486,21 @@ MAX_ANGLE = 6 * math.pi
 MAX_ERRORS = 5
 
 
+def _warn_repeated_rows(name, lines, rows):
+    """Warn of rows that repeat an earlier one in every column: a test pasted twice weighs twice in every fit,
+    while a real replicate (the same design printed again) rarely measures the same angle to the last digit."""
+    first, repeats = {}, []
+    for line, row in zip(lines, rows):
+        if row in first:
+            repeats.append(f"{line} (= {first[row]})")
+        else:
+            first[row] = line
+    if repeats:
+        log.warning("%s: row(s) %s repeat an earlier row in every column, the angle included; a test pasted "
+                    "twice counts twice in every fit: remove it unless it is a replicate", name,
+                    ", ".join(repeats[:5]) + (f" and {len(repeats) - 5} more" if len(repeats) > 5 else ""))
+
+
 def load_folding_tests(path, default_h=None):
     """Read folding tests from a CSV with columns ``L_mm, d_mm, h_mm, alpha_rad``.
 
@@ -533,7 +548,7 @@ def load_folding_tests(path, default_h=None):
                 cols[c].append(float(default_h))
                 continue
             try:
-                v = float(raw)
+                v = data_float(raw)
             except ValueError:
                 errors.append(f"row {i}, column {c}: expected a number, got {raw!r}")
                 cols[c].append(math.nan)
@@ -554,6 +569,8 @@ def load_folding_tests(path, default_h=None):
     if errors:
         shown = errors[:MAX_ERRORS] + ([f"and {len(errors) - MAX_ERRORS} more"] if len(errors) > MAX_ERRORS else [])
         raise GdfeError(f"{path.name}: " + "; ".join(shown))
+    _warn_repeated_rows(path.name, [i for i, _ in numbered], [tuple((row.get(c) or "").strip() for c in header)
+                                                               for _, row in numbered])
     return FoldingTests(
         L=np.array(cols["L_mm"]), d=np.array(cols["d_mm"]), h=np.array(cols["h_mm"]),
         alpha=np.array(cols["alpha_rad"]), extra={k: np.array(v) for k, v in extra.items()},

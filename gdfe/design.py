@@ -926,6 +926,10 @@ def _film(name, path, doc, model, proc):
     R = None if "R" not in film else _entry(f"{where} R", film["R"], lambda n, v: check_number(
         n, v, minimum=R_MIN, maximum=1.0, what=RATIO_WHAT))
     d = None if "d" not in film else _entry(f"{where} d", film["d"], check_length)
+    if R is not None and d is not None:  # as gdfe hinge's --d and --R
+        raise GdfeError(f"{name}: [film] gives R = {R:g} and d = {d:g} mm; expected one of them: R sets the "
+                        f"contraction directly, so d would be reported and packaged for a film it does not "
+                        f"describe; give d for R from Eq. 3 (or a model), or R alone")
     nz = check_int(f"{where} nz", film.get("nz", DEFAULT_NZ))
     iso = _entry(f"{where} isotropy", film.get("isotropy", 1.0), lambda n, v: check_number(
         n, v, minimum=0.0, maximum=1.0, what="a number in [0, 1]"))
@@ -995,6 +999,10 @@ def _read_masks(src):
     spec, where = src.table, src.where
     files = {key: src.file(key, "mask image") for key in ("top", "bottom", "film") if key in spec}
     thick = {k: _entry(f"{where} {k}", spec[k], check_length) for k in ("d_top", "d_bottom") if k in spec}
+    if thick and src.film.R is not None:
+        raise GdfeError(f"{where} {', '.join(thick)}: expected no coat thickness beside [film] R = "
+                        f"{src.film.R:g}, which sets the contraction directly; give the thicknesses without R "
+                        f"(R from Eq. 3 or a model), or R alone")
     return src.masks_design(files["top"], files["bottom"], _entry(f"{where} pixel", spec["pixel"], check_length),
                             film=files.get("film"), **thick)
 

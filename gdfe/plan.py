@@ -254,6 +254,7 @@ def plan_tests(model, n, L_range=L_RANGE, d_range=D_RANGE, h_range=None, *, grid
         raise GdfeError("plan: no candidate in the ranges has a valid prediction by every member; widen --d")
     mu, Lg, dg, hg = mu[ok], Lg[ok], dg[ok], hg[ok]
     jac = [J[ok] for J in jac]
+    seed = check_int("seed", seed, minimum=0)
     rng = np.random.default_rng(seed)
     truth = np.arange(samples) % K  # stratified: every member equally often
     Z = np.zeros((samples, 0))

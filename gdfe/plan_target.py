@@ -457,6 +457,7 @@ def _problem(model, target, tests, name):
 def _draws(samples, n, K, w, seed):
     """The preposterior's draws: standard normals ``Z`` ``(S, n)`` (one column per test, drawn in order so
     that a plan and given tests share them), each sample's true member (stratified) and its weight."""
+    seed = check_int("seed", seed, minimum=0)
     rng = np.random.default_rng(seed)
     Z = np.column_stack([rng.standard_normal(samples) for _ in range(n)]) if n else np.zeros((samples, 0))
     truth = np.arange(samples) % K

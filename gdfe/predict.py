@@ -35,7 +35,8 @@ import math
 import numpy as np
 
 from gdfe import paper
-from gdfe._validation import GdfeError, check_choice, check_file, check_number, read_text
+from gdfe._validation import GdfeError, check_choice, check_file, check_number, data_float, read_text
+from gdfe.calibration import MAX_ANGLE
 from gdfe.model import DeformationModel, Member, Uncertainty
 
 #: A member's parameter part (standard deviation) beyond which its linearisation says nothing:
@@ -95,6 +96,25 @@ class HingeSpecimens:
         return out
 
 
+#: The columns :func:`load_specimens` reads; any other is a process column or a label, carried to the output.
+SPECIMEN_COLUMNS = ("L_mm", "d_mm", "h_mm", "alpha_rad")
+
+
+def _check_extra_columns(name, header):
+    """Refuse a column that is a misspelling of one of :data:`SPECIMEN_COLUMNS` the file lacks (``h_mn``,
+    ``alpha_deg``): read as a label, its values would be left out of the prediction without a word."""
+    import difflib
+
+    absent = [c for c in SPECIMEN_COLUMNS if c not in header]
+    for c in header:
+        if c in SPECIMEN_COLUMNS:
+            continue
+        near = difflib.get_close_matches(c, absent, n=1, cutoff=0.75)
+        if near:
+            raise GdfeError(f"{name}: column {c!r}: did you mean {near[0]!r}? Expected {', '.join(SPECIMEN_COLUMNS)} "
+                            f"(lengths in mm, angles in radians); other columns are process variables or labels")
+
+
 def load_specimens(path):
     """Read specimens from a CSV with columns ``L_mm, d_mm`` and optionally ``h_mm`` (default the
     paper's film, 0.29 mm), ``alpha_rad`` (measured angles) and any process columns.
@@ -120,6 +140,7 @@ def load_specimens(path):
                         f"h_mm, alpha_rad and process columns, got {', '.join(header) or 'no header'}")
     if not rows[1:]:
         raise GdfeError(f"{path.name}: no data rows")
+    _check_extra_columns(path.name, header)
     cols = {c: [] for c in header}
     for line, r in rows[1:]:
         if len(r) != len(header):
@@ -131,12 +152,15 @@ def load_specimens(path):
         out = []
         for (line, _), v in zip(rows[1:], cols[c]):
             try:
-                x = float(v)
+                x = data_float(v)
             except ValueError:
                 raise GdfeError(f"{path.name}: row {line}, column {c}: expected a number, got {v!r}") from None
             if not math.isfinite(x) or (positive and x <= 0):
                 raise GdfeError(f"{path.name}: row {line}, column {c}: expected a "
                                 f"{'positive length in mm' if positive else 'finite angle in rad'}, got {v!r}")
+            if not positive and abs(x) > MAX_ANGLE:  # as gdfe calibrate reads measured angles
+                raise GdfeError(f"{path.name}: row {line}, column {c}: expected a fold angle in radians of at most "
+                                f"{MAX_ANGLE:.4g} (three turns), got {v!r} (degrees?)")
             out.append(x)
         return np.array(out)
 

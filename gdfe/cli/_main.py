@@ -138,7 +138,7 @@ def _emit_error(target, kind, message, exit_status, options=None):
 
     try:
         write_text(target, text + "\n")
-    except OSError:  # the file cannot be written (often the very error): its one line on standard error says it
+    except (OSError, GdfeError):  # the file cannot be written (often the very error): its one line on standard error says it
         pass
 
 
@@ -230,6 +230,10 @@ def _dispatch(args, options=None):
     from gdfe.parallel import stopping_workers
 
     try:
+        if target not in (None, "-"):  # refused before anything is written, not after the other outputs
+            from gdfe.io import check_creatable
+
+            check_creatable(target, "--json", what="file")
         with stopping_workers():  # SIGTERM and Ctrl-C stop the worker processes too
             return int(args.func(args) or 0)
     except KeyboardInterrupt as exc:

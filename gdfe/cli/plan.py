@@ -57,6 +57,7 @@ def run(args):
         raise GdfeError("--level: an option of --target DESIGN (the intervals of the part's folds), given without it")
     if args.level is not None:
         check_number("--level", args.level, minimum=0.0, maximum=1.0, include_minimum=False, include_maximum=False)
+    check_int("--seed", args.seed, minimum=0)
     L, d = parse_range("--L", args.L), parse_range("--d", args.d)
     target = target_folds(args.target, "--target") if args.target is not None else None
     h = parse_range("--h", args.h) if args.h is not None else None

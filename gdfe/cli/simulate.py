@@ -72,6 +72,9 @@ def _angles_text(summary):
     rows = summary.get("crease_angles")
     if rows is not None:
         label, key = "crease", "edge"
+        if not rows:  # a FOLD design: a crease's angle is measured between the two faces it joins
+            return ("  fold angles: none measured (no crease joins two faces of the FOLD file's faces_vertices; "
+                    "without faces_vertices a crease's faces are not known)\n")
     else:
         rows, label, key = summary.get("panel_angles", []), "panels", "panels"
     if not rows:

@@ -58,7 +58,7 @@ import math
 
 import numpy as np
 
-from gdfe._validation import GdfeError, GdfeTypeError, check_choice, is_finite_number
+from gdfe._validation import GdfeError, GdfeTypeError, check_choice, data_float, is_finite_number
 from gdfe.calibration import FoldingTests, load_folding_tests
 from gdfe.diagnosis.attribution import attribute
 from gdfe.diagnosis.artefacts import screen as screen_artefacts
@@ -125,7 +125,7 @@ class Columns:
 
 def _as_float(values):
     try:
-        x = np.array([float(s) for s in values])
+        x = np.array([data_float(s) for s in values])
     except (TypeError, ValueError):
         return None
     return x if np.all(np.isfinite(x)) else None
@@ -151,7 +151,7 @@ def _not_finite_rows(values):
             bad.append(i)
             continue
         try:
-            x = float(v)
+            x = data_float(v)
         except ValueError:
             return None
         if not math.isfinite(x):

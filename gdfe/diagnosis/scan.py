@@ -17,7 +17,7 @@ import logging
 
 import numpy as np
 
-from gdfe._validation import LENGTH_RANGE, GdfeError, check_array, check_file, read_text
+from gdfe._validation import LENGTH_RANGE, GdfeError, check_array, check_file, data_float, read_text
 
 __all__ = ["load_measured", "check_points", "MEASURED_SUFFIXES"]
 
@@ -159,7 +159,7 @@ def _read_csv(path):
         raise GdfeError(f"{path.name}: expected points, got none")
     header = None
     try:
-        [float(c) for c in rows[0][:3]]
+        [data_float(c) for c in rows[0][:3]]
     except ValueError:
         header = [c.strip().lower() for c in rows[0]]
         rows = rows[1:]
@@ -172,7 +172,7 @@ def _read_csv(path):
     for i, r in enumerate(rows):
         line = i + (2 if header is not None else 1)
         try:
-            pts[i] = [float(r[c]) for c in cols]
+            pts[i] = [data_float(r[c]) for c in cols]
         except (ValueError, IndexError):
             raise GdfeError(f"{path.name}: line {line}: expected three numbers x, y, z, got {r}") from None
         if not np.all(np.isfinite(pts[i])):

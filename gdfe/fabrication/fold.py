@@ -29,7 +29,9 @@ fully contracting hinge by that angle; ``gdfe:hinge_width`` [mm] of the file; th
 ``hinge_width`` argument [mm]. ``gdfe:pixel`` [mm] gives the file's printer pixel.
 
 Errors name the key and the index of the entry (``edges_vertices[3]``); JSON that does
-not parse is reported with its line and column.
+not parse is reported with its line and column. Fold angles must lie in [-180, 180] degrees
+(FOLD's range); each face must be a simple polygon, and the faces must not overlap (where
+there are boundary edges, their areas must add up to the area the boundary encloses).
 """
 
 from __future__ import annotations
@@ -174,8 +176,11 @@ def read_fold(path, scale=None, scale_name="scale"):
     coated = _coated(doc, name, assignment)
     faces = _faces(doc, name, len(V))
     keys = _gdfe_keys(doc, name)
-    return CreasePattern(name=name, vertices=V * mm, edges=E, assignment=assignment, fold_angle=angle, width=width,
-                         coated=coated, faces=faces, keys=keys)
+    cp = CreasePattern(name=name, vertices=V * mm, edges=E, assignment=assignment, fold_angle=angle, width=width,
+                       coated=coated, faces=faces, keys=keys)
+    if faces:  # an empty list: the film from the boundary loops, as without faces_vertices
+        _check_faces(cp)
+    return cp
 
 
 def _json_object(path):
@@ -265,7 +270,10 @@ def _fold_angles(doc, name, assignment):
     angle = np.full(len(assignment), np.nan)
     for k, a in enumerate(fa or []):
         if a is not None:
-            angle[k] = math.radians(_number(a, f"{name}: edges_foldAngle[{k}]"))
+            deg = _number(a, f"{name}: edges_foldAngle[{k}]")
+            if not -180.0 <= deg <= 180.0:  # FOLD's fold angles are in [-180, 180] (720 made an 11.9 mm hinge)
+                raise GdfeError(f"{name}: edges_foldAngle[{k}]: expected degrees in [-180, 180], got {a!r}")
+            angle[k] = math.radians(deg)
             mv = assignment[k]
             if mv == "M" and angle[k] > 0 or mv == "V" and angle[k] < 0:
                 raise GdfeError(f"{name}: edges_foldAngle[{k}]: a {'mountain' if mv == 'M' else 'valley'} "
@@ -354,6 +362,182 @@ def _boundary_loops(cp):
             prev, cur = cur, nxt
         loops.append(np.array(loop))
     return loops
+
+
+def _cross(o, a, b):
+    """z of ``(a - o) x (b - o)``, over the leading axes of (..., 2) arrays."""
+    return (a[..., 0] - o[..., 0]) * (b[..., 1] - o[..., 1]) - (a[..., 1] - o[..., 1]) * (b[..., 0] - o[..., 0])
+
+
+def _segments_meet(a, b, c, d, tol):
+    """Whether the closed segments a-b and c-d meet (cross, touch or overlap), over the leading axes.
+
+    Points within ``tol`` [length] of a segment's line count as on it, so collinear and
+    touching segments are found whatever the round-off.
+    """
+    def side(p, q, r):  # -1, 0 or 1: r right of, on or left of the line p-q (within tol)
+        o = _cross(p, q, r)
+        return np.where(np.abs(o) <= tol * np.hypot(*(q - p).T).T, 0, np.sign(o))
+
+    def within(p, q, r):  # r, on the line p-q, lies between p and q
+        return np.all((np.minimum(p, q) - tol <= r) & (r <= np.maximum(p, q) + tol), axis=-1)
+
+    s1, s2, s3, s4 = side(c, d, a), side(c, d, b), side(a, b, c), side(a, b, d)
+    cross = (s1 * s2 < 0) & (s3 * s4 < 0)
+    touch = ((s1 == 0) & within(c, d, a)) | ((s2 == 0) & within(c, d, b)) | ((s3 == 0) & within(a, b, c)) \
+        | ((s4 == 0) & within(a, b, d))
+    return cross | touch
+
+
+def _area(P):
+    """Signed (shoelace) area of the closed polygon ``P``, positive anticlockwise."""
+    Q = np.roll(P, -1, axis=0)
+    return 0.5 * float(np.sum(P[:, 0] * Q[:, 1] - Q[:, 0] * P[:, 1]))
+
+
+def _inside(P, pts, tol):
+    """Which of the points ``pts`` (m, 2) lie inside the closed polygon ``P`` by more than ``tol``.
+
+    Even-odd rule (a ray along +x); a point within ``tol`` of an edge is not inside.
+    """
+    a, b = P[None, :, :], np.roll(P, -1, axis=0)[None, :, :]
+    p = np.asarray(pts, float)[:, None, :]
+    d = b - a
+    L2 = np.maximum(np.sum(d * d, axis=-1), np.finfo(float).tiny)
+    t = np.clip(np.sum((p - a) * d, axis=-1) / L2, 0.0, 1.0)
+    near = np.hypot(*(a + t[..., None] * d - p).transpose(2, 0, 1)).min(axis=1) <= tol
+    straddle = (a[..., 1] > p[..., 1]) != (b[..., 1] > p[..., 1])
+    dy = np.where(straddle, d[..., 1], 1.0)
+    x = a[..., 0] + (p[..., 1] - a[..., 1]) * d[..., 0] / dy
+    odd = np.sum(straddle & (x > p[..., 0]), axis=1) % 2 == 1
+    return odd & ~near
+
+
+def _check_simple(name, k, f, P, tol):
+    """Refuse face ``k`` (vertex indices ``f``, positions ``P``) unless a simple polygon.
+
+    Its vertices are different points, two adjacent edges do not double back over each other,
+    and two non-adjacent edges do not meet (adjacent ones meet only at their shared vertex).
+    """
+    where = f"{name}: faces_vertices[{k}]: expected a simple polygon (edges meeting only at their shared corners)"
+    seen = {}
+    for i in f.tolist():
+        if i in seen:
+            raise GdfeError(f"{where}, got {f.tolist()}: it has vertex {i} twice")
+        seen[i] = True
+    n = len(f)
+    gap = np.hypot(*(P[:, None, :] - P[None, :, :]).transpose(2, 0, 1))
+    i, j = np.nonzero(np.triu(gap <= tol, 1))
+    if len(i):
+        raise GdfeError(f"{where}, got {f.tolist()}: its vertices {f[i[0]]} and {f[j[0]]} are both at "
+                        f"{describe(P[i[0]].tolist())}")
+    prev, nxt = np.roll(P, 1, axis=0), np.roll(P, -1, axis=0)
+    u, w = prev - P, nxt - P
+    back = (np.abs(_cross(P, prev, nxt)) <= tol * np.hypot(*u.T)) & (np.sum(u * w, axis=1) > 0)
+    if back.any():
+        m = int(np.argmax(back))
+        raise GdfeError(f"{where}, got {f.tolist()}: its edges {f[m - 1]}-{f[m]} and {f[m]}-{f[(m + 1) % n]} "
+                        f"double back over each other")
+    i, j = np.triu_indices(n, 2)
+    keep = ~((i == 0) & (j == n - 1))  # the last edge and the first are adjacent
+    i, j = i[keep], j[keep]
+    meet = _segments_meet(P[i], nxt[i], P[j], nxt[j], tol)
+    if meet.any():
+        m = int(np.argmax(meet))
+        a, b = int(i[m]), int(j[m])
+        raise GdfeError(f"{where}, got {f.tolist()}: its edge {f[a]}-{f[(a + 1) % n]} crosses its edge "
+                        f"{f[b]}-{f[(b + 1) % n]}")
+
+
+def _interior_point(P, tol):
+    """A point strictly inside the simple polygon ``P`` (O'Rourke's: by its lowest-leftmost, convex, vertex)."""
+    n = len(P)
+    v = int(np.lexsort((P[:, 1], P[:, 0]))[0])
+    a, c, b = P[v - 1], P[v], P[(v + 1) % n]
+    if n == 3:
+        return (a + b + c) / 3.0
+    rest = np.delete(P, [(v - 1) % n, v, (v + 1) % n], axis=0)
+    s = np.sign(_cross(a, c, b))  # the triangle a, v, b's orientation
+    ab = np.hypot(*(b - a))
+    off = -s * _cross(a, b, rest) / ab  # distance from the line a-b, on v's side (positive)
+    inside = (s * _cross(a, c, rest) >= -tol * ab) & (s * _cross(c, b, rest) >= -tol * ab) & (off > tol)
+    if not inside.any():
+        return (a + b + c) / 3.0
+    q = rest[inside][np.argmax(off[inside])]
+    return (c + q) / 2.0
+
+
+def _convex(P, tol):
+    """Whether the simple polygon ``P`` is convex (vertices on a straight edge allowed)."""
+    turn = _cross(np.roll(P, 1, axis=0), P, np.roll(P, -1, axis=0)) * np.sign(_area(P))
+    return bool(np.all(turn >= -tol * np.hypot(*(P - np.roll(P, 1, axis=0)).T)))
+
+
+def _overlap_convex(A, B, tol):
+    """Whether two convex polygons' insides overlap: no edge normal separates them (by more than -tol)."""
+    d = np.vstack([np.roll(A, -1, axis=0) - A, np.roll(B, -1, axis=0) - B])
+    axes = np.column_stack([-d[:, 1], d[:, 0]]) / np.hypot(*d.T)[:, None]
+    pa, pb = A @ axes.T, B @ axes.T
+    gap = np.minimum(pa.max(0), pb.max(0)) - np.maximum(pa.min(0), pb.min(0))
+    return bool(np.all(gap > tol))
+
+
+def _check_faces(cp):
+    """Refuse faces that cross themselves, overlap one another or do not tile the boundary's outline.
+
+    Each face must be a simple polygon (:func:`_check_simple`). Where the file has boundary
+    (``B``) edges in closed loops, the faces' areas must add up to the area the loops enclose
+    (a loop inside another one is a hole). Then every two faces are checked for overlap:
+    exactly for two convex faces (separating axes); where either is not convex, only whether
+    a point inside one lies inside the other (a face holding another, or the same face twice).
+    """
+    name = cp.name
+    V = cp.vertices - cp.vertices.min(0)  # round-off as of the pattern's size, not its position
+    span = float(max(np.ptp(cp.vertices, axis=0).max(), np.finfo(float).tiny))
+    tol = 1e-9 * span
+    polys = [V[f] for f in cp.faces]
+    for k, (f, P) in enumerate(zip(cp.faces, polys)):
+        _check_simple(name, k, f, P, tol)
+    areas = np.array([abs(_area(P)) for P in polys])
+    if (cp.assignment == "B").any():
+        try:
+            loops = [V[p] for p in _boundary_loops(cp)]
+        except GdfeError as exc:
+            loops = None
+            log.info("%s: faces not checked against the boundary: %s", name, exc)
+        if loops is not None:
+            enclosed = 0.0
+            for i, L in enumerate(loops):
+                depth = sum(bool(_inside(M, L, tol).any()) for j, M in enumerate(loops) if j != i)
+                enclosed += (-1.0) ** depth * abs(_area(L))  # a loop inside an odd number of loops: a hole
+            total = float(areas.sum())
+            if abs(total - enclosed) > 1e-6 * max(total, enclosed) + 1e-9 * span ** 2:
+                how = ("overlap (or reach outside the outline)" if total > enclosed
+                       else "leave out part of the outline")
+                raise GdfeError(f"{name}: faces_vertices: the faces' areas add up to {total:.6g} mm2 but the "
+                                f"boundary (B) edges enclose {enclosed:.6g} mm2; expected faces that tile the "
+                                f"outline, got faces that {how}")
+    # pairwise: exact for convex faces; a non-convex face overlapping another without holding a
+    # point of its inside, or the other holding one of its own (partly overlapping L shapes), is not
+    # caught here (where there are B edges the areas above catch it unless a gap makes up for it)
+    lo = np.array([P.min(0) for P in polys])
+    hi = np.array([P.max(0) for P in polys])
+    convex = [_convex(P, tol) for P in polys]
+    inner = [None] * len(polys)
+    for j in range(1, len(polys)):
+        near = np.all((np.minimum(hi[:j], hi[j]) - np.maximum(lo[:j], lo[j])) > tol, axis=1)
+        for i in np.nonzero(near)[0]:
+            if convex[i] and convex[j]:
+                overlap = _overlap_convex(polys[i], polys[j], tol)
+            else:
+                for m in (i, j):
+                    if inner[m] is None:
+                        inner[m] = _interior_point(polys[m], tol)
+                overlap = bool(_inside(polys[i], inner[j][None], tol)[0] or _inside(polys[j], inner[i][None], tol)[0])
+            if overlap:
+                raise GdfeError(f"{name}: faces_vertices[{j}]: overlaps faces_vertices[{i}] (expected faces that "
+                                f"meet only along their edges, got {cp.faces[j].tolist()} and "
+                                f"{cp.faces[i].tolist()})")
 
 
 #: Bytes per pixel of :func:`fold_masks`: the film, face and hinge masks, the pixels' centres, the

@@ -16,7 +16,11 @@ Inkscape layer's name) or ``id`` is, in any case, one of
 A filled shape outside such a group is an error (hide it, ``display:none``, or delete it).
 With ``by="colour"`` the fill colour says it instead: :data:`FACE_COLOURS` (red top, blue
 bottom, black both, green film), or a mapping given by the caller. Shapes without a fill
-(strokes, guides) are left out. Fills use the shape's ``fill-rule`` (``nonzero`` or
+(strokes, guides) are left out: with a warning naming them in a ``top``, ``bottom`` or ``both``
+group, and a ``film`` group whose shapes all lack a fill is an error (the film is not the whole
+page then). Clipping and masking (``clip-path``, ``mask``) are not applied, so a face's shape that
+is clipped or masked (or, by colour, any shape) is an error: release the clip or intersect the
+shapes in the drawing program. Fills use the shape's ``fill-rule`` (``nonzero`` or
 ``evenodd``); transforms, ``<use>`` clones, groups and units are resolved by svgelements.
 
 **Geometry.** Lengths come out in millimetres from the page size (``width``/``height`` with
@@ -27,8 +31,8 @@ pixel: a pixel is coated when its centre is inside (:func:`gdfe.fabrication.rast
 The grid is cropped to the film's bounding box.
 
 **Errors.** XML that is not well formed is reported with its line and column; a ``<path>``
-whose ``d`` does not parse, text not converted to paths, and shapes outside any face are
-reported naming the element (tag, id, line).
+whose ``d`` does not parse, text not converted to paths, clipped or masked face shapes, and
+shapes outside any face are reported naming the element (tag, id, line).
 
 svgelements is imported by the functions that read SVG.
 """
@@ -153,6 +157,53 @@ _GEOMETRY = ("x", "y", "width", "height", "cx", "cy", "r", "rx", "ry", "x1", "y1
 _NOT_FINITE = re.compile(r"(?i)(?<![a-z])(nan|inf(inity)?)(?![a-z])")
 
 
+#: Properties that clip or mask what an element draws: svgelements does not apply them.
+_CLIPPING = ("clip-path", "mask")
+#: Elements whose content is not drawn where it stands (only where referenced, e.g. by ``<use>``).
+_UNDRAWN = ("defs", "clipPath", "mask", "symbol", "pattern", "marker")
+_XLINK_HREF = "{http://www.w3.org/1999/xlink}href"
+
+
+def _clip_of(el):
+    """The element's first clip-path or mask reference (attribute or ``style``) as ``'name=value'``, or None;
+    ``none`` is no reference."""
+    found = [(key, el.get(key)) for key in _CLIPPING]
+    for decl in (el.get("style") or "").split(";"):
+        key, sep, value = decl.partition(":")
+        if sep and key.strip().lower() in _CLIPPING:
+            found.append((key.strip().lower(), value))
+    for key, value in found:
+        value = (value or "").replace("!important", "").strip()
+        if value and value.lower() != "none":
+            return f"{key}={value!r}"
+    return None
+
+
+def _use_target(el, ids):
+    """The element a ``<use>`` clones (``href`` or ``xlink:href`` = ``#id``), or None."""
+    ref = (el.get("href") or el.get(_XLINK_HREF) or "").strip()
+    return ids.get(ref[1:]) if ref.startswith("#") else None
+
+
+def _clip_in(el, ids, seen):
+    """``(element, reference)`` of the first clip-path or mask on ``el``, its content or what its ``<use>``
+    elements clone, or None."""
+    if id(el) in seen:
+        return None
+    seen.add(id(el))
+    ref = _clip_of(el)
+    if ref:
+        return el, ref
+    if el.tag.rsplit("}", 1)[-1] in ("clipPath", "mask"):
+        return None
+    target = _use_target(el, ids) if el.tag.rsplit("}", 1)[-1] == "use" else None
+    for child in [*el, *([target] if target is not None else [])]:
+        found = _clip_in(child, ids, seen)
+        if found:
+            return found
+    return None
+
+
 def _face_of(el):
     for key in (_INKSCAPE_LABEL, "id"):
         v = (el.get(key) or "").strip().lower()
@@ -166,12 +217,28 @@ def _prepare(path, by):
     import svgelements as se
 
     root, lines = _read_tree(path)
+    _complete_page(root)
+    ids = {el.get("id"): el for el in root.iter() if el.get("id")}
+    unclipped = ("clipping and masking are not applied (the shape would be read whole); release the clip or "
+                 "mask, or intersect the shapes, in the drawing program")
 
-    def walk(el, face):
+    def walk(el, face, drawn=True):
         tag = el.tag.rsplit("}", 1)[-1]
         where = _describe(el, lines.get(id(el), "?"))
         if tag == "g" and by == "layer":
             face = _face_of(el) or face
+        drawn = drawn and tag not in _UNDRAWN
+        ref = _clip_of(el) if drawn else None
+        if ref and (by == "colour" or face is not None):  # a face's shape, or any shape by colour
+            raise GdfeError(f"{path.name}: {where}: {ref}: {unclipped}")
+        if ref and any(e.tag.rsplit("}", 1)[-1] == "g" and _face_of(e) for e in el.iter()):
+            raise GdfeError(f"{path.name}: {where}: {ref} on a group holding face groups: {unclipped}")
+        if drawn and (by == "colour" or face is not None):
+            target = _use_target(el, ids) if tag == "use" else None
+            found = _clip_in(target, ids, {id(el)}) if target is not None else None
+            if found:
+                raise GdfeError(f"{path.name}: {where}: clones {_describe(found[0], lines.get(id(found[0]), '?'))}"
+                                f" with {found[1]}: {unclipped}")
         for key in _GEOMETRY:
             value = el.get(key)
             if value is not None and _NOT_FINITE.search(value):
@@ -185,7 +252,7 @@ def _prepare(path, by):
         if face is not None:
             el.set("gdfe-face", face)
         for child in el:
-            walk(child, face)
+            walk(child, face, drawn)
 
     walk(root, None)
     text = ET.tostring(root, encoding="unicode")
@@ -220,6 +287,23 @@ def _subpaths(shape, step_px):
 _LENGTH = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(mm|cm|in|px|pt|pc|q)?\s*$", re.I)
 _UNIT_MM = {"mm": 1.0, "cm": 10.0, "in": 25.4, "px": 25.4 / 96.0, "pt": 25.4 / 72.0, "pc": 25.4 / 6.0,
             "q": 0.25, None: 25.4 / 96.0}
+
+
+def _complete_page(root):
+    """The root's missing ``width`` or ``height`` from the other and the ``viewBox``'s aspect ratio, in the
+    other's unit, as SVG renderers size such a page; set on ``root`` so that svgelements reads the same page."""
+    box = (root.get("viewBox") or "").replace(",", " ").split()
+    try:
+        bw, bh = (float(box[2]), float(box[3])) if len(box) == 4 else (0.0, 0.0)
+    except ValueError:
+        return  # svgelements and _page report a malformed viewBox
+    given = {key: _LENGTH.match(root.get(key) or "") for key in ("width", "height")}
+    if not (bw > 0 and bh > 0) or sum(root.get(key) is None for key in given) != 1:
+        return
+    have, missing, ratio = ("width", "height", bh / bw) if root.get("height") is None else ("height", "width", bw / bh)
+    m = given[have]
+    if m:
+        root.set(missing, f"{float(m.group(1)) * ratio!r}{m.group(2) or ''}")
 
 
 def _page(root, svg, name):
@@ -273,7 +357,16 @@ def svg_masks(path, pixel, by="layer", colours=None):
     colour_face = _colour_faces(colours) if by == "colour" else None
     svg, root = _prepare(path, by)
     W, H, mm = _page(root, svg, path.name)
-    polys, counts = _face_shapes(svg, path.name, by, colour_face, pixel / mm / 10.0, mm)
+    polys, counts, unfilled = _face_shapes(svg, path.name, by, colour_face, pixel / mm / 10.0, mm)
+    if not polys["film"] and unfilled["film"]:  # else the whole page would silently be the film
+        n = len(unfilled["film"])
+        raise GdfeError(f"{path.name}: the film group's {n} shape(s) have no fill ({', '.join(unfilled['film'][:3])}"
+                        f"{', ...' if n > 3 else ''}): an outline drawn as a stroke is not read; fill the film's shape")
+    left = [where for face in FACES for where in unfilled[face]]
+    if left:
+        log.warning("%s: %d shape(s) in face groups have no fill and are left out (an outline drawn as a stroke is "
+                    "not read; fill it to coat it): %s%s", path.name, len(left), ", ".join(left[:3]),
+                    ", ..." if len(left) > 3 else "")
     from gdfe.resources import check_grid
 
     # before any grid is made: the page's size on the printer's grid
@@ -301,11 +394,13 @@ def _colour_faces(colours):
 
 def _face_shapes(svg, name, by, colour_face, step, mm):
     """The drawing's filled shapes by face: face -> ``[(polygons [mm, y down], fill rule, where), ...]``,
-    and how many shapes each face has. A filled shape of no face is an error naming it."""
+    how many shapes each face has, and face -> the ``where`` of each shape without a fill in that face's
+    group (by layer; none by colour). A filled shape of no face is an error naming it."""
     import svgelements as se
 
     polys = {f: [] for f in FACES}
     counts = dict.fromkeys(FACES, 0)
+    unfilled = {f: [] for f in FACES}
     for el in svg.elements():
         if isinstance(el, se.Text):
             continue  # non-empty text was refused in _prepare
@@ -314,6 +409,9 @@ def _face_shapes(svg, name, by, colour_face, step, mm):
         fill = el.fill
         where = el.values.get("gdfe-where", type(el).__name__)
         if fill is None or fill.value is None or fill.alpha == 0:
+            face = el.values.get("gdfe-face") if by == "layer" else None
+            if face is not None:
+                unfilled[face].append(where)
             continue
         if by == "layer":
             face = el.values.get("gdfe-face")
@@ -336,7 +434,7 @@ def _face_shapes(svg, name, by, colour_face, step, mm):
         if sub:
             polys[face].append((sub, rule, where))
             counts[face] += 1
-    return polys, counts
+    return polys, counts, unfilled
 
 
 def _face_masks(polys, page, pixel, name):
