@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from gdfe._validation import GdfeError, check_int
+from gdfe._validation import LENGTH_RANGE, GdfeError, check_int
 from gdfe.predict import HingeSpecimens, closed_form_jacobian, members_of
 
 __all__ = ["Plan", "plan_tests", "candidate_grid", "parse_range", "models_to_tell_apart", "GRID", "SAMPLES", "L_RANGE",
@@ -77,7 +77,17 @@ def parse_range(name, text):
     lo, hi = vals[0], vals[-1]
     if lo > hi:
         raise GdfeError(f"{name}: expected LO <= HI, got {text!r}")
+    if lo < LENGTH_RANGE[0] or hi > LENGTH_RANGE[1]:
+        raise GdfeError(f"{name}: expected lengths between {LENGTH_RANGE[0]:g} and {LENGTH_RANGE[1]:g} mm, got {text!r}")
     return lo, hi
+
+
+def _no_valid_candidate(L_range, d_range, h_range):
+    """The error of a plan none of whose candidates every member predicts (a contraction ratio outside (0, 1),
+    as where the coat is too thin for the film)."""
+    span = ", ".join(f"{k} {lo:g}-{hi:g} mm" for k, (lo, hi) in (("--L", L_range), ("--d", d_range), ("--h", h_range)))
+    return GdfeError(f"plan: no candidate in the ranges ({span}) has a valid prediction by every member (a "
+                     f"contraction ratio in (0, 1)); the coat d and the film h decide it: widen --d or change --h")
 
 
 @dataclasses.dataclass
@@ -251,7 +261,7 @@ def plan_tests(model, n, L_range=L_RANGE, d_range=D_RANGE, h_range=None, *, grid
     mu, jac, cov, noise = _member_predictions(members, HingeSpecimens(Lg, dg, hg))
     ok = np.all(np.isfinite(mu), axis=1)
     if not ok.any():
-        raise GdfeError("plan: no candidate in the ranges has a valid prediction by every member; widen --d")
+        raise _no_valid_candidate(L_range, d_range, (float(hg.min()), float(hg.max())))
     mu, Lg, dg, hg = mu[ok], Lg[ok], dg[ok], hg[ok]
     jac = [J[ok] for J in jac]
     seed = check_int("seed", seed, minimum=0)

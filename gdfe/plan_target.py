@@ -59,7 +59,7 @@ from pathlib import Path
 import numpy as np
 
 from gdfe._validation import GdfeError, check_file, check_int, check_number
-from gdfe.plan import D_RANGE, GRID, L_RANGE, SAMPLES, _member_predictions, candidate_grid
+from gdfe.plan import D_RANGE, GRID, L_RANGE, SAMPLES, _member_predictions, candidate_grid, _no_valid_candidate
 from gdfe.predict import LEVEL, HingeSpecimens, closed_form_jacobian, members_of
 
 __all__ = ["TargetFolds", "TargetPlan", "target_folds", "plan_for_target", "expected_for_tests"]
@@ -623,7 +623,7 @@ def plan_for_target(model, target, n, L_range=L_RANGE, d_range=D_RANGE, h_range=
     members, P = _problem(model, target, HingeSpecimens(Lg, dg, hg), name)
     ok = np.all(np.isfinite(P.mu), axis=1)
     if not ok.any():
-        raise GdfeError("plan: no candidate in the ranges has a valid prediction by every member; widen --d")
+        raise _no_valid_candidate(L_range, d_range, (float(hg.min()), float(hg.max())))
     P = dataclasses.replace(P, mu=P.mu[ok], jac=[J[ok] for J in P.jac])
     cands = HingeSpecimens(Lg[ok], dg[ok], hg[ok])
     Z, truth, omega = _draws(samples, n, P.w.size, P.w, seed)

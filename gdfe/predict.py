@@ -35,7 +35,7 @@ import math
 import numpy as np
 
 from gdfe import paper
-from gdfe._validation import GdfeError, check_choice, check_file, check_number, data_float, read_text
+from gdfe._validation import LENGTH_RANGE, GdfeError, check_choice, check_file, check_number, data_float, read_text
 from gdfe.calibration import MAX_ANGLE
 from gdfe.model import DeformationModel, Member, Uncertainty
 
@@ -158,6 +158,9 @@ def load_specimens(path):
             if not math.isfinite(x) or (positive and x <= 0):
                 raise GdfeError(f"{path.name}: row {line}, column {c}: expected a "
                                 f"{'positive length in mm' if positive else 'finite angle in rad'}, got {v!r}")
+            if positive and not LENGTH_RANGE[0] <= x <= LENGTH_RANGE[1]:  # as gdfe calibrate reads lengths
+                raise GdfeError(f"{path.name}: row {line}, column {c}: expected a length between {LENGTH_RANGE[0]:g} "
+                                f"and {LENGTH_RANGE[1]:g} mm, got {v!r}")
             if not positive and abs(x) > MAX_ANGLE:  # as gdfe calibrate reads measured angles
                 raise GdfeError(f"{path.name}: row {line}, column {c}: expected a fold angle in radians of at most "
                                 f"{MAX_ANGLE:.4g} (three turns), got {v!r} (degrees?)")

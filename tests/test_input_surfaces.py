@@ -140,3 +140,26 @@ def test_process_and_label_columns_still_pass(tmp_path, capsys, model_file):
     (tmp_path / "s.csv").write_text("L_mm,d_mm,specimen,alpha_rad\n2.6,0.33,a1,2.5\n")
     rc, err = _run(capsys, ["predict", model_file, tmp_path / "s.csv"])
     assert rc == 0, err
+
+
+def test_specimen_lengths_outside_the_design_range_are_refused(tmp_path, capsys, model_file):
+    (tmp_path / "s.csv").write_text("L_mm,d_mm\n1e300,0.33\n")
+    _refused(capsys, ["predict", model_file, tmp_path / "s.csv"],
+             r"s\.csv: row 2, column L_mm: expected a length between 1e-06 and 1e\+06 mm, got '1e300'")
+
+
+# --- gdfe plan and gdfe data ----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["--L", "1:1e9"], r"--L: expected lengths between 1e-06 and 1e\+06 mm, got '1:1e9'"),
+    (["--d", "1e-300:1e-299"], r"--d: expected lengths between"),
+    (["--h", "30:40"], r"no candidate in the ranges \(--L 1-6 mm, --d 0\.11-0\.5 mm, --h 30-40 mm\).*change --h"),
+])
+def test_plan_ranges_out_of_reach_are_refused_naming_them(capsys, argv, match):
+    _refused(capsys, ["plan", gdfe.TABLE1, "--L", "1:6", "--d", "0.11:0.5", *argv], match)
+
+
+def test_data_refuses_one_file_for_the_copy_and_the_json(tmp_path, capsys):
+    same = tmp_path / "same.json"
+    _refused(capsys, ["data", "table1", "--out", same, "--json", same], r"--out, --json: expected two files")

@@ -55,6 +55,8 @@ def run(args):
         target = Path(args.out)
         if target.exists():
             raise GdfeError(f"--out: {target} exists; expected a new file (remove it or choose another name)")
+        if args.json not in (None, "-") and Path(args.json).absolute() == target.absolute():
+            raise GdfeError(f"--out, --json: expected two files, got {target} for both (the JSON would replace the copy)")
         write_text(target, path.read_text())
         out["copied_to"] = str(target)
         text = f"wrote {target} (a copy of {path})"
