@@ -721,7 +721,9 @@ class DeformationModel:
         The diagnosis's hinge model (:class:`gdfe.diagnosis.Model`) becomes the same stages
         on any design: ``passive_stiffness`` is the Timoshenko principle, the other effects
         are mechanisms of the same names. A measurement effect (``reading_offset``) is how the
-        folds were read, not how a part folds: it is left out, and the model says so.
+        folds were read, not how a part folds: it is left out, and the model says so (in its
+        warnings, and in its name: ``saturation (fitted beside reading_offset)``, apart from
+        ``saturation`` fitted alone).
         """
         from gdfe._version import __version__
 
@@ -762,7 +764,10 @@ class DeformationModel:
             info["held_out_rmse_rad"] = float(rmse)
             info["held_out"] = {"loo": "leave one test out", "logo": "leave one group out"}.get(held_out, held_out)
         mech = tuple(e for e in effects if e != "passive_stiffness")
-        name = fit.model.name if len(effects) == len(fit.model.effects) else ("+".join(effects) or "baseline")
+        dropped = [e for e in fit.model.effects if e in measured]
+        # named apart from the same effects fitted alone (a plan or an ensemble may hold both)
+        name = fit.model.name if not dropped else (f"{'+'.join(effects) or 'baseline'} (fitted beside "
+                                                   f"{'+'.join(dropped)})")
         return cls(principle=principle, params=params, mechanisms=mech, name=name,
                    source="gdfe diagnose", data=info, version=__version__, columns=columns, labels=labels,
                    warnings=notes)

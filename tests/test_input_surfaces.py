@@ -13,6 +13,7 @@ from PIL import Image
 import gdfe
 from gdfe.cli import main
 from gdfe._validation import data_float
+from gdfe.diagnosis import diagnose
 
 
 def _run(capsys, argv):
@@ -163,3 +164,52 @@ def test_plan_ranges_out_of_reach_are_refused_naming_them(capsys, argv, match):
 def test_data_refuses_one_file_for_the_copy_and_the_json(tmp_path, capsys):
     same = tmp_path / "same.json"
     _refused(capsys, ["data", "table1", "--out", same, "--json", same], r"--out, --json: expected two files")
+
+
+def test_calibrate_warns_where_the_fit_is_worse_than_the_mean(tmp_path, capsys):
+    path = _table1(tmp_path, lambda lines: [lines[0], "1e5" + lines[1][4:]] + lines[2:])  # L = 1e5 mm in row 2
+    rc, err = _run(capsys, ["calibrate", path, "--boot", "0", "--json", tmp_path / "fit.json"])
+    assert rc == 0, err
+    warnings = __import__("json").loads((tmp_path / "fit.json").read_text())["warnings"]
+    assert len(warnings) == 1 and re.match(r"r2 = -4\.\d+: the eq1 fit predicts the angles worse than their mean", warnings[0])
+    rc, err = _run(capsys, ["calibrate", gdfe.TABLE1, "--boot", "0", "--json", tmp_path / "t1.json"])
+    assert "warnings" not in __import__("json").loads((tmp_path / "t1.json").read_text())  # Table 1: r2 0.58
+
+
+def test_a_column_that_is_the_measured_angle_again_is_not_a_cause(tmp_path):
+    def with_degrees(lines):
+        return [lines[0] + ",alpha_deg"] + [f"{line},{float(line.split(',')[3]) * 57.29578:.2f}" for line in lines[1:]]
+    diag = diagnose(_table1(tmp_path, with_degrees))
+    assert diag.columns.ignored["alpha_deg"].startswith("the measured angle again (57.3 x alpha_rad)")
+    assert "alpha_deg" not in diag.columns.process
+    base = diagnose(gdfe.TABLE1).verdict
+    assert (diag.verdict.verdict, diag.verdict.named) == (base.verdict, base.named)
+
+
+def test_an_svg_line_encloses_nothing(tmp_path, caplog):
+    page = ('<svg xmlns="http://www.w3.org/2000/svg" width="6mm" height="2mm" viewBox="0 0 6 2">{}'
+            '<g id="both"><rect x="0" y="0" width="2" height="2"/><rect x="4" y="0" width="2" height="2"/></g>'
+            '<g id="top"><rect x="2" y="0" width="2" height="2"/>{}</g></svg>')
+    line = '<line x1="0" y1="1" x2="6" y2="1" stroke="red" stroke-width="0.05"/>'
+    (tmp_path / "plain.svg").write_text(page.format("", ""))
+    (tmp_path / "lines.svg").write_text(page.format(line, line))  # a construction line, and one in a face group
+    from gdfe.fabrication.svg import svg_masks
+
+    with caplog.at_level(logging.WARNING, logger="gdfe.fabrication.svg"):
+        m = svg_masks(tmp_path / "lines.svg", 0.1)  # was refused: "a filled shape outside any group"
+    plain = svg_masks(tmp_path / "plain.svg", 0.1)
+    assert all((getattr(m, k) == getattr(plain, k)).all() for k in ("top", "bottom", "film"))
+    assert "1 shape(s) in face groups have no fill" in caplog.text and "<line>" in caplog.text
+
+
+def test_plan_members_have_distinct_names(tmp_path):
+    from gdfe.plan import models_to_tell_apart, plan_tests
+    from gdfe.predictive import from_diagnosis
+
+    path = _table1(tmp_path, lambda lines: [lines[0], "1e6" + lines[1][4:]] + lines[2:])
+    diag = diagnose(path)
+    fits = models_to_tell_apart(diag)
+    assert {"saturation", "saturation+reading_offset"} <= {f.name for f in fits}  # the case that repeated a name
+    plan = plan_tests(from_diagnosis(diag, data=path, members=fits), 1, (1.0, 6.0), (0.11, 0.5), (0.29, 0.29))
+    assert len(set(plan.members)) == len(plan.members) == len(fits)
+    assert "saturation (fitted beside reading_offset)" in plan.members

@@ -54,6 +54,11 @@ def run(args):
         d = f.as_dict()
         d.pop("residuals")
         block = f.text()
+        if f.r2 < 0:  # worse than the mean angle: a misread row (a unit, a typo) is likelier than the reading
+            doubt = (f"r2 = {f.r2:.3g}: the {m} fit predicts the angles worse than their mean does; check the "
+                     f"rows of {args.data.name} (a unit, a typo, an outlier) before using it")
+            block += f"\nWARNING: {doubt}"
+            d.setdefault("warnings", []).append(doubt)
         if args.d is not None:
             R = float(f.ratio(args.d, h))
             if not R > 0:  # a contraction ratio <= 0: the film would vanish

@@ -141,6 +141,18 @@ def numeric_columns(tests):
     return out
 
 
+def _angle_again(x, alpha):
+    """The factor ``c`` where the column ``x`` is ``c`` times the measured angles (to 1e-3 of its largest value,
+    the rounding of an angle written in degrees), else None."""
+    alpha = np.asarray(alpha, float)
+    aa = float(alpha @ alpha)
+    if aa == 0.0 or np.ptp(alpha) == 0.0:
+        return None
+    c = float(x @ alpha) / aa
+    scale = float(np.max(np.abs(x)))
+    return c if c != 0.0 and np.max(np.abs(x - c * alpha)) <= 1e-3 * scale else None
+
+
 def _not_finite_rows(values):
     """Rows (CSV numbering) of a column whose values all read as numbers or are empty, where a
     value is empty or not finite; None when the column holds text."""
@@ -217,7 +229,10 @@ def read_columns(tests, group=None, process=None, roles=None):
             raise GdfeError(f"roles: column {k!r} is declared {known.roles[k]}, a process role, so it must be "
                             f"numeric; got {str(v[0])!r} in row 2")
         if x is not None and not labelled:
-            if np.ptp(x) > 0:
+            again = _angle_again(x, tests.alpha)
+            if again is not None:  # the measured angle in other units: it would "explain" every residual
+                ignored[k] = f"the measured angle again ({again:.4g} x alpha_rad), not a cause"
+            elif np.ptp(x) > 0:
                 numeric[k] = x
             else:
                 ignored[k] = "numeric, but the same in every test"

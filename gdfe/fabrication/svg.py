@@ -408,7 +408,8 @@ def _face_shapes(svg, name, by, colour_face, step, mm):
             continue
         fill = el.fill
         where = el.values.get("gdfe-where", type(el).__name__)
-        if fill is None or fill.value is None or fill.alpha == 0:
+        # a <line> encloses no area: its fill (black by default) paints nothing
+        if fill is None or fill.value is None or fill.alpha == 0 or isinstance(el, se.SimpleLine):
             face = el.values.get("gdfe-face") if by == "layer" else None
             if face is not None:
                 unfilled[face].append(where)
