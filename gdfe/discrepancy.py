@@ -203,6 +203,17 @@ def fit_discrepancy(model, tests, *, inputs=None, noise=None, seed=0, restarts=R
     n = len(spec)
     if n < 4:
         raise GdfeError(f"tests: expected at least 4 tests to fit a discrepancy, got {n}")
+    # as gdfe diagnose reads them: a sign would be fitted as a discrepancy of twice the fold; with a known
+    # noise a small negative fold within NEGATIVE_SIGMAS of it is a measured small fold
+    from gdfe.diagnosis.angles import NEGATIVE_SIGMAS
+
+    tol = NEGATIVE_SIGMAS * check_positive("noise", noise) if noise is not None else 0.0
+    negative = np.flatnonzero(spec.alpha < -tol)
+    if negative.size:
+        rows = ", ".join(str(i + 2) for i in negative[:10]) + (", ..." if negative.size > 10 else "")
+        raise GdfeError(f"tests: alpha_rad: expected fold angles as magnitudes (>= 0, positive towards the uncoated "
+                        f"face), got {negative.size} negative{' beyond twice the noise' if tol else ''} in "
+                        f"row{'s' if negative.size > 1 else ''} {rows}")
     if inputs is None:
         inputs = tuple(k for k, v in (("L_mm", spec.L), ("d_mm", spec.d), ("h_mm", spec.h)) if np.ptp(v) > 0)
     if not inputs:

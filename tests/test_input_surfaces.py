@@ -213,3 +213,10 @@ def test_plan_members_have_distinct_names(tmp_path):
     plan = plan_tests(from_diagnosis(diag, data=path, members=fits), 1, (1.0, 6.0), (0.11, 0.5), (0.29, 0.29))
     assert len(set(plan.members)) == len(plan.members) == len(fits)
     assert "saturation (fitted beside reading_offset)" in plan.members
+
+
+def test_a_discrepancy_table_with_negative_angles_is_refused(tmp_path, capsys, model_file):
+    path = _table1(tmp_path, lambda lines: [lines[0], lines[1].rsplit(",", 1)[0] + ",-1.75"] + lines[2:])
+    (tmp_path / "s.csv").write_text("L_mm,d_mm\n2.6,0.33\n")
+    _refused(capsys, ["predict", model_file, tmp_path / "s.csv", "--discrepancy", path],
+             r"--discrepancy tests\.csv: tests: alpha_rad: expected fold angles as magnitudes .* 1 negative in row 2")

@@ -51,7 +51,10 @@ def run(args):
             raise GdfeError("--discrepancy: expected no --simulate (the discrepancy corrects the closed form)")
         if args.noise is not None:
             check_number("--noise", args.noise, minimum=0.0, include_minimum=False)
-        koh = fit_discrepancy(model, gdfe.load_folding_tests(args.discrepancy), noise=args.noise)
+        try:
+            koh = fit_discrepancy(model, gdfe.load_folding_tests(args.discrepancy), noise=args.noise)
+        except GdfeError as exc:  # its rows are the file's
+            raise GdfeError(f"--discrepancy {args.discrepancy.name}: {exc}") from None
         pred = koh.predict(args.specimens, level=level)
     else:
         pred = predict(model, args.specimens, level=level, noise=args.noise, simulate=args.simulate)
