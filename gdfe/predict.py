@@ -90,7 +90,7 @@ class HingeSpecimens:
                 out[c] = v  # a group label
                 continue
             try:
-                out[c] = float(v)
+                out[c] = data_float(v)  # as the specimens' own columns: 1_50 is not 150
             except ValueError:
                 raise GdfeError(f"specimens: row {i + 2}, column {c}: expected a number ({mech}), got {v!r}") from None
         return out

@@ -220,3 +220,15 @@ def test_a_discrepancy_table_with_negative_angles_is_refused(tmp_path, capsys, m
     (tmp_path / "s.csv").write_text("L_mm,d_mm\n2.6,0.33\n")
     _refused(capsys, ["predict", model_file, tmp_path / "s.csv", "--discrepancy", path],
              r"--discrepancy tests\.csv: tests: alpha_rad: expected fold angles as magnitudes .* 1 negative in row 2")
+
+
+def test_a_process_column_reads_numbers_as_the_specimens_columns_do():
+    from gdfe.predict import HingeSpecimens
+
+    model = gdfe.DeformationModel(principle="eq1", params={"K": 0.37, "rate": 0.1, "x50": 100.0},
+                                  mechanisms=("partial_activation",), columns={"partial_activation": "T_C"})
+    spec = HingeSpecimens(L=np.array([2.6, 2.6]), d=np.array([0.33, 0.33]), h=np.array([0.29, 0.29]),
+                          extra={"T_C": np.array(["120", "1_20"])})
+    assert spec.process(0, model) == {"T_C": 120.0}
+    with pytest.raises(gdfe.GdfeError, match=r"row 3, column T_C: expected a number \(partial_activation\), got '1_20'"):
+        spec.process(1, model)
