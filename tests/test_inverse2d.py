@@ -11,6 +11,7 @@ import pytest
 
 import gdfe
 from gdfe._validation import GdfeError
+from gdfe.physical_ranges import MAX_CONTRACTION
 from gdfe.cli import main
 from gdfe.inverse2d import (Film, Objective, block_size, closest_reachable, contraction_gradient, density_filter,
                             design_surface, fold, halftone, initial_coating, make_target, min_feature_ok, project,
@@ -230,6 +231,21 @@ def test_design_target_from_a_mesh_file(tmp_path, capsys):
         assert scale_for(t, f)[1].reachable == ok, size
 
 
+def test_twist_beyond_any_film_refused():
+    """A twist whose edges must be longer than its middle line by more than a film shrinks is refused with the
+    largest angle the strip allows; just inside that limit the target is built (and left to the reachability
+    of the film at hand), and an angle so large that its length ratio overflows is refused the same way."""
+    largest = 2.0 * math.acosh(1.0 / (1.0 - MAX_CONTRACTION)) * 20.0 / 5.0
+    t = make_target("twist", 20.0, angle=0.999 * largest)
+    assert t.params["angle_rad"] == pytest.approx(0.999 * largest)
+    with pytest.raises(GdfeError, match=rf"expected at most {largest:.4g} rad for this strip"):
+        make_target("twist", 20.0, angle=1.001 * largest)
+    with pytest.raises(GdfeError, match="more than 1e300 times as long"):
+        make_target("twist", 20.0, angle=1e6)
+    # a narrower strip twists further
+    make_target("twist", 20.0, angle=2.0 * largest, width=2.4)
+
+
 def test_design_target_bad_inputs(tmp_path, capsys):
     with pytest.raises(GdfeError, match="target: expected one of 'dome'"):
         make_target("sphere", 3.0)
@@ -258,7 +274,9 @@ def test_design_target_bad_inputs(tmp_path, capsys):
              (["--target", "dome", "--size", "1000", "--pixel", "0.001"], "fits in memory"),
              (["--target", "dome", "--size", "3", "--d", "0.1"], "d=0.1"),
              (["--target", "saddle", "--size", "3", "--width", "1"], "--width"),
-             (["hook.toml", "--size", "3"], "--size")]
+             (["hook.toml", "--size", "3"], "--size"),
+             (["--target", "twist", "--size", "20", "--angle", "1e3"], "angle: a twist of 1000 rad"),
+             (["--target", "twist", "--size", "20", "--angle", "180"], "180 degrees is 3.142 rad")]
     for args, word in cases:
         assert main(["design", *args, "--out", str(tmp_path / "o")]) == 1, args
         err = capsys.readouterr().err

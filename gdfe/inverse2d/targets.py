@@ -37,6 +37,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from gdfe._validation import GdfeError, check_array, check_choice, check_file, check_number, check_positive
+from gdfe.physical_ranges import MAX_CONTRACTION
 
 __all__ = ["Target", "ANALYTIC", "MESH_SUFFIXES", "dome", "saddle", "cylinder", "twist", "mesh_target",
            "load_target", "make_target", "read_triangle_mesh", "conformal_flattening"]
@@ -217,6 +218,7 @@ def twist(size, angle=None, width=None):
     film = _film(size, 0.25 * size if width is None else width)
     theta = float(math.pi if angle is None else check_number("angle", angle, minimum=0.0, include_minimum=False,
                                                             what="a positive angle in rad"))
+    _check_twist_metric(theta, *film)
 
     def maps(sigma):
         tau = theta / (sigma * film[0])  # per mm of the folded strip: the angle is end to end
@@ -233,6 +235,27 @@ def twist(size, angle=None, width=None):
     return Target(name="twist", kind="twist", film_size=film, params={"angle_rad": theta, "width_mm": float(film[1])},
                   maps=maps, family=lambda t: twist(size, theta * t, film[1]),
                   source=f"helicoid strip twisting by {theta:g} rad end to end", note=TWIST_NOTE)
+
+
+def _check_twist_metric(theta, length, width):
+    """Refuse a twist no shrink film can reach: its edges longer than its middle line by more than any film shrinks.
+
+    In the film's conformal coordinates the helicoid's length ratio is ``cosh(theta y / length)``
+    at ``y`` across the strip, whatever the scale; isotropic shrink gives at most
+    ``1 / (1 - MAX_CONTRACTION)`` (:data:`gdfe.physical_ranges.MAX_CONTRACTION`).
+    """
+    a = 0.5 * theta * width / length
+    ratio = math.cosh(a) if a < 700.0 else math.inf
+    needs = f"{ratio:.3g} times" if math.isfinite(ratio) else "more than 1e300 times"
+    limit = 1.0 / (1.0 - MAX_CONTRACTION)
+    if ratio <= limit:
+        return
+    largest = 2.0 * math.acosh(limit) * length / width
+    hint = (f"; {theta:g} degrees is {math.radians(theta):.4g} rad" if math.radians(theta) <= largest else "")
+    raise GdfeError(f"angle: a twist of {theta:g} rad end to end of a {length:g} x {width:g} mm strip needs its "
+                    f"edges {needs} as long as its middle line (cosh(angle x width / (2 x length)), the "
+                    f"film's conformal coordinates), and a shrink film gives at most {limit:.3g} (a free shrink of "
+                    f"{MAX_CONTRACTION:.0%}); expected at most {largest:.4g} rad for this strip{hint}")
 
 
 #: Why a twist is beyond isotropic shrink (measured by ``gdfe study inverse2d``).
