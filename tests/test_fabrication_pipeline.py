@@ -167,6 +167,8 @@ def test_design_command_writes_masks_design_check_and_package(tmp_path, capsys):
 
 def test_design_command_letters_and_errors(tmp_path, capsys):
     out = tmp_path / "i"
+    tight = tmp_path / "tight.toml"
+    tight.write_text("couples = [[1.0, 0.3]]\n")  # tighter than the film folds: the library's clamp=True is --clamp
     assert main(["design", "--text", "i", "--pixel", "0.25", "--out", str(out), "--no-check"]) == 0
     assert (out / "01_i_top.png").is_file() and not (out / "01_i_deviation.json").exists()
     capsys.readouterr()
@@ -178,9 +180,39 @@ def test_design_command_letters_and_errors(tmp_path, capsys):
          "w_min: expected a whole number of cells"),
         (["design", "--text", "i", "--pixel", "0.3", "--out", str(out)], "width: expected a whole number of pixels"),
         (["design", "--text", "i", "--R", "1.0", "--out", str(out)], "R: expected a contraction ratio strictly"),
+        (["design", str(tight), "--out", str(out)], r"h/\(1-R\) = 0.9499 mm \(pass --clamp to print it"),
     ]:
         assert main(argv) == 1
         assert re.search(match, capsys.readouterr().err), match
+
+
+def test_design_command_says_when_the_strip_misses_its_target(tmp_path, capsys):
+    """A sketch that doubles back tighter than the film folds (a hairpin of 0.5 mm against a smallest radius
+    near 1 mm) misses by several per cent of its length: NOT REACHED and exit status 4, in the text and
+    the JSON; the Figure 10 S is within the default tolerance, and misses a tolerance tighter than its
+    deviation."""
+    sketch = tmp_path / "hairpin.csv"
+    sketch.write_text("x, y\n0, 0\n10, 0\n20, 0\n12, 0.5\n4, 1\n")
+    assert main(["design", str(sketch), "--out", str(tmp_path / "a")]) == 4
+    text = capsys.readouterr().out
+    assert "tolerance   2 % of each part's length" in text and "NOT REACHED: the printed strip misses" in text
+    rec = json.loads((tmp_path / "a" / "design.json").read_text())["parts"][0]["check"]
+    length = rec["target"]["length_mm"]
+    assert rec["reached"] is False and rec["tolerance_mm"] == pytest.approx(inv.TOLERANCE_FRACTION * length)
+    assert rec["deviation"]["rms_mm"] > 0.03 * length
+    assert json.loads((tmp_path / "a" / "hairpin_deviation.json").read_text())["reached"] is False
+
+    s_sketch = str(EXAMPLES / "s_sketch.csv")
+    assert main(["design", s_sketch, "--out", str(tmp_path / "s")]) == 0
+    text = capsys.readouterr().out
+    assert "within the tolerance" in text and "NOT REACHED" not in text
+    rms = json.loads((tmp_path / "s" / "design.json").read_text())["parts"][0]["check"]["deviation"]["rms_mm"]
+    assert main(["design", s_sketch, "--tolerance", f"{0.5 * rms:.4f}", "--out", str(tmp_path / "t")]) == 4
+    assert "NOT REACHED" in capsys.readouterr().out
+    for argv, match in [([s_sketch, "--tolerance", "-1"], "--tolerance: expected"),
+                        ([s_sketch, "--tolerance", "0.5", "--no-check"], "--tolerance: a tolerance of the simulated")]:
+        assert main(["design", *argv, "--out", str(tmp_path / "e")]) == 1
+        assert match in capsys.readouterr().err, match
 
 
 @pytest.mark.slow

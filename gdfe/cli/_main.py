@@ -113,6 +113,16 @@ def _options(parser, args):
     return {}
 
 
+def _as_options(message, options):
+    """``message`` with a library's switch (``pass clamp=True``) named as the command's option (``pass
+    --clamp``) where the running command has that option."""
+    def option(m):
+        flag = (options or {}).get(m.group(1), "")
+        return flag if flag.startswith("--") else m.group(0)
+
+    return re.sub(r"\b([A-Za-z_]\w*)=True\b", option, message)
+
+
 def error_object(kind, message, exit_status, options=None):
     """The JSON of an error: ``{"error": {"type", "message", "argument" (where named), "exit_status"}}``;
     ``options`` (dest -> option) turns a library argument's name into the command's option."""
@@ -252,7 +262,7 @@ def _dispatch(args, options=None):
     except GdfeError as exc:
         if args.debug:
             traceback.print_exc()
-        text = " ".join(str(exc).split())  # one line, whatever a library underneath put in it
+        text = _as_options(" ".join(str(exc).split()), options)  # one line, whatever a library underneath put in it
         print(f"{_name(args)}: error: {text}", file=sys.stderr)
         _emit_error(target, "GdfeError", text, 1, options)
         return 1

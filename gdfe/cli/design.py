@@ -9,7 +9,9 @@ its masks (``NAME_top.png``, ``NAME_bottom.png``: 1-bit, black = passive, DPI se
 design file (``NAME.toml``), the design read back from those files and simulated
 (``NAME_check.pvd``), and its deviation from the target (``NAME_deviation.png``,
 ``NAME_deviation.json``: RMS and largest distance, overall and per segment); then a print
-package of every part (``print.zip``) and ``design.json``.
+package of every part (``print.zip``) and ``design.json``. A part whose check misses its target by more than
+``--tolerance`` RMS (default :data:`gdfe.inverse.TOLERANCE_FRACTION` of its length) is reported
+NOT REACHED (``reached`` and ``tolerance_mm`` in its ``check``), and the command exits with status 4.
 
 2-D input: ``--target dome|saddle|cylinder|twist|MESH.obj|.stl|.ply --size MM``
 (:mod:`gdfe.inverse2d`): the coating of both faces whose GDFE fold matches the surface, its
@@ -28,10 +30,11 @@ import math
 from pathlib import Path
 
 from gdfe import paper
-from gdfe._validation import GdfeError, check_length
+from gdfe._validation import GdfeError, check_length, check_positive
 from gdfe.cli._common import emit, file_path, json_arg, noting, out_arg, output_folder
 from gdfe.cli._uncertainty import check_uncertainty, run_ensemble, uncertainty_args, write_ensemble
-from gdfe.inverse2d.design import DEFAULT_ITERATIONS
+from gdfe.inverse.pipeline import TOLERANCE_FRACTION as STRIP_TOLERANCE
+from gdfe.inverse2d.design import DEFAULT_ITERATIONS, TOLERANCE_FRACTION
 from gdfe.inverse2d.masks import PROJECTIONS
 
 __all__ = ["register", "run"]
@@ -51,8 +54,9 @@ def register(sub):
                                    "check and its deviation report. With --target SURFACE --size MM: 2-D design, "
                                    "the coating of both faces whose fold matches the surface (gradient-based, "
                                    "through the GDFE equilibrium), printable masks that respect --w-min, the "
-                                   "printed design's fold and its distance to the target; exit status 3 when "
-                                   "that fold did not converge, 4 when it misses the target.")
+                                   "printed design's fold and its distance to the target. Exit status 3 when "
+                                   "the checked fold did not converge, 4 when it misses the target by more "
+                                   "than --tolerance.")
     p.add_argument("input", nargs="?", type=file_path, help="couples (.toml), sketch (.csv or .svg)")
     p.add_argument("--text", help="letters of Figure 9 to design, one strip each (instead of INPUT)")
     out_arg(p, required=True)
@@ -78,6 +82,10 @@ def register(sub):
     p.add_argument("--spacing", type=float, default=None,
                    help=f"sketch SVG: sampling of curved segments [mm] (default {DEFAULT_SPACING:g})")
     p.add_argument("--no-check", action="store_true", help="write the files, skip the simulated check")
+    p.add_argument("--tolerance", type=float,
+                   help="RMS distance [mm] below which the target counts as reached (default: a strip's check "
+                        f"{100 * STRIP_TOLERANCE:g} %% of the target's length, a 2-D design "
+                        f"{100 * TOLERANCE_FRACTION:g} %% of the film's size); exit status 4 when missed")
     g = p.add_argument_group("2-D design from a target surface")
     g.add_argument("--target", metavar="SURFACE",
                    help="dome, saddle, cylinder, twist, or a triangle mesh (.obj, .stl, .ply) [mm]")
@@ -91,8 +99,6 @@ def register(sub):
     g.add_argument("--angle", type=float, help="twist: angle end to end [rad] (default pi); --width: its width")
     g.add_argument("--projection", choices=PROJECTIONS, default=None,
                    help="coating fractions to masks: halftone (default), nested halftones, or threshold at 1/2")
-    g.add_argument("--tolerance", type=float, help="RMS distance [mm] below which the target counts as reached "
-                                                   "(default 1 %% of the film's size)")
     uncertainty_args(p)
     json_arg(p, "the summary")
     p.set_defaults(func=run)
@@ -166,7 +172,7 @@ _ONLY_1D = (("input", "INPUT"), ("text", "--text"), ("R", "--R"), ("K", "--K"), 
             ("weights", "--weights"), ("rounding", "--rounding"), ("clamp", "--clamp"), ("svg_id", "--svg-id"),
             ("spacing", "--spacing"))
 _ONLY_2D = (("size", "--size"), ("model", "--model"), ("iterations", "--iterations"), ("radius", "--radius"),
-            ("angle", "--angle"), ("projection", "--projection"), ("tolerance", "--tolerance"),
+            ("angle", "--angle"), ("projection", "--projection"),
             ("uncertainty", "--uncertainty"), ("level", "--level"), ("seed", "--seed"))
 
 
@@ -185,6 +191,8 @@ def _check_mode(args):
     given = [flag for dest, flag in _ONLY_2D if getattr(args, dest) is not None]
     if given:
         raise GdfeError(f"{given[0]}: an option of --target (2-D design), not of the 1-D pipeline")
+    if args.no_check and args.tolerance is not None:
+        raise GdfeError("--tolerance: a tolerance of the simulated check, which --no-check skips")
 
 
 def run(args):
@@ -231,6 +239,11 @@ def _run(args, begin_output):
     ch.set("compensate", bool(args.compensate), "command line" if args.compensate else "paper (no compensation)")
     ch.set("check", "none" if args.no_check else "GDFE, the design read back from its masks",
            "command line" if args.no_check else "default")
+    if args.tolerance is not None:
+        check_positive("--tolerance", args.tolerance)
+        ch.set("tolerance", args.tolerance, "command line", "mm")
+    elif not args.no_check:
+        ch.set("tolerance", f"{100 * STRIP_TOLERANCE:g} % of each part's length", "default (RMS deviation)")
     film = {"h": h, "d": d, "K": K, "nz": 1} if d is not None else {"h": h, "R": R, "nz": 1}
     out = args.out
     begin_output()
@@ -254,11 +267,15 @@ def _run(args, begin_output):
             if not args.no_check:
                 announce_estimate(estimate_run(printed.design.n_cells), mode, f"the check of {name}: ")
                 check = inv.check_strip(plan, design=printed.design)
-                rep = write_check(check, out, name)
+                tolerance = check.default_tolerance() if args.tolerance is None else args.tolerance
+                rep = write_check(check, out, name,
+                                  extra={"tolerance_mm": tolerance, "reached": check.reached(tolerance)})
                 rec["check"] = rep
                 rec["files"]["check"] = str(write_series(check.result, out, name=f"{name}_check"))
                 if not check.converged:
                     status = 3
+                elif not rep["reached"] and status != 3:
+                    status = 4
             records.append(rec)
             progress.advance()
     pkg = write_print_package(out / "print.zip", designs, d=d, K=K,
@@ -291,7 +308,13 @@ def _text(ch, records, out, pkg):
             continue
         dev = chk["deviation"]
         lines.append(f"    check: converged in {chk['iterations']} iterations (residual {chk['residual']:.1e}), "
-                     f"{chk['seconds']:.2f} s; deviation RMS {dev['rms_mm']:.3f} mm, max {dev['max_mm']:.3f} mm")
+                     f"{chk['seconds']:.2f} s; deviation RMS {dev['rms_mm']:.3f} mm, max {dev['max_mm']:.3f} mm"
+                     + (f", within the tolerance {chk['tolerance_mm']:.3g} mm" if chk["reached"] else ""))
+        if not chk["reached"]:
+            worst = max((seg for seg in dev["segments"] if seg["max_mm"] is not None), key=lambda seg: seg["rms_mm"])
+            lines.append(f"    NOT REACHED: the printed strip misses the target by {dev['rms_mm']:.3f} mm RMS "
+                         f"(max {dev['max_mm']:.3f} mm), tolerance {chk['tolerance_mm']:.3g} mm; most in segment "
+                         f"{worst['index']} (RMS {worst['rms_mm']:.3f} mm)")
         for seg in dev["segments"]:
             if seg["max_mm"] is None:
                 continue
@@ -365,8 +388,8 @@ def _run_target(args, begin_output):
     iterations = ch.pick("iterations", args.iterations, None, DEFAULT_ITERATIONS, "default")
     projection = ch.pick("projection", args.projection, None, "halftone",
                          "default (error diffusion of the coating fractions)")
-    tolerance = ch.pick("tolerance", args.tolerance, None, 0.01 * float(max(target.film_size)),
-                        "default: 1 % of the film's size", "mm")
+    tolerance = ch.pick("tolerance", args.tolerance, None, TOLERANCE_FRACTION * float(max(target.film_size)),
+                        f"default: {100 * TOLERANCE_FRACTION:g} % of the film's size", "mm")
 
     mode = progress_mode(args)
     if isinstance(pixel, (int, float)) and pixel > 0 and isinstance(iterations, int) and iterations >= 0:

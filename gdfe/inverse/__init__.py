@@ -20,8 +20,9 @@ from gdfe.inverse.curves import align_2d, closest_on_polyline, compare_curves
 from gdfe.inverse.deviation import Deviation, plot_deviation, strip_deviation
 from gdfe.inverse.letters import LETTERS, Glyph, glyph, text_glyphs
 from gdfe.inverse.patterns import ROUNDINGS, StripPattern, strip_pattern, with_hinges
-from gdfe.inverse.pipeline import (StripCheck, StripPlan, TargetCurve, check_strip, midline_compensated, plan_strip,
-                                   target_from_couples, target_from_letter, target_from_sketch)
+from gdfe.inverse.pipeline import (TOLERANCE_FRACTION, StripCheck, StripPlan, TargetCurve, check_strip,
+                                   midline_compensated, plan_strip, target_from_couples, target_from_letter,
+                                   target_from_sketch)
 from gdfe.inverse.segmentation import (Segmentation, SketchFit, fit_segments, fit_sketch, segment_cost_matrix,
                                        tangent_graph)
 from gdfe.inverse.sources import CouplesFile, read_couples_toml, read_sketch, read_sketch_csv
@@ -34,6 +35,7 @@ __all__ = [
     "tangent_graph", "Segmentation", "segment_cost_matrix", "fit_segments", "SketchFit", "fit_sketch",
     "Glyph", "LETTERS", "glyph", "text_glyphs",
     "TargetCurve", "target_from_couples", "target_from_letter", "target_from_sketch", "midline_compensated",
-    "StripPlan", "plan_strip", "StripCheck", "check_strip", "Deviation", "strip_deviation", "plot_deviation",
+    "StripPlan", "plan_strip", "StripCheck", "check_strip", "TOLERANCE_FRACTION",
+    "Deviation", "strip_deviation", "plot_deviation",
     "CouplesFile", "read_couples_toml", "read_sketch", "read_sketch_csv",
 ]
