@@ -33,7 +33,7 @@ import scipy.sparse as sp
 
 from gdfe._validation import GdfeError, check_int
 from gdfe.solver import device as _device
-from gdfe.solver.multigrid import jacobi_weight
+from gdfe.solver.multigrid import jacobi_weight, largest_eigenvalue
 
 __all__ = ["AMG_MAX_COARSE", "AMG_REBUILD_CG", "available", "BlockPattern", "hessian_blocks", "rigid_modes",
            "HessianAMG", "CoarseAMG"]
@@ -179,18 +179,6 @@ def _block_inverse_diagonal(A):
     return out
 
 
-def _spectral_radius(A, Dinv, rng, sweeps=12):
-    """Largest eigenvalue of ``Dinv A`` by power iteration (A symmetric positive definite)."""
-    n = A.shape[0]
-    x = rng.standard_normal(n)
-    lam = 1.0
-    for _ in range(sweeps):
-        y = np.einsum("vij,vj->vi", Dinv, (A @ x).reshape(Dinv.shape[0], -1)).ravel()
-        lam = float(np.linalg.norm(y) / np.linalg.norm(x))
-        x = y / max(np.linalg.norm(y), 1e-300)
-    return lam
-
-
 class HessianAMG:
     """A smoothed-aggregation V-cycle for one assembled Hessian (symmetric positive definite).
 
@@ -234,7 +222,9 @@ class HessianAMG:
         self.levels = []
         for lvl in ml.levels[:-1]:
             Dinv = _block_inverse_diagonal(lvl.A)
-            lam = _spectral_radius(lvl.A, Dinv, rng)
+            lam = largest_eigenvalue(
+                lambda x, A=lvl.A, Dinv=Dinv: np.einsum("vij,vj->vi", Dinv, (A @ x).reshape(len(Dinv), -1)).ravel(),
+                lvl.A.shape[0], rng)
             weight = jacobi_weight(lam)
             self.levels.append((_device.to_device_sparse(lvl.A.tocsr(), xp),
                                 _device.to_device_sparse(lvl.P.tocsr(), xp),

@@ -44,7 +44,7 @@ from gdfe.solver.linalg import factorise
 from gdfe.solver.threads import RowBlocks
 
 __all__ = ["MULTIGRID_CELLS", "MG_COARSEST", "MG_SMOOTHING", "MG_ASPECT", "MG_SOLVE_RATIO", "MG_CHEBYSHEV_FROM",
-           "JACOBI_TOP", "LAMBDA_MARGIN", "jacobi_weight", "lattice", "prolongation", "chebyshev2", "Multigrid"]
+           "JACOBI_TOP", "LAMBDA_MARGIN", "largest_eigenvalue", "jacobi_weight", "lattice", "prolongation", "chebyshev2", "Multigrid"]
 
 #: Designs above this many cells solve the assembly step with the multigrid (in CG) and
 #: precondition the Newton steps with one V-cycle, instead of factorising ``L_ff``
@@ -80,6 +80,18 @@ MG_ASPECT = 2
 #: sheets, tests/test_multigrid.py). :func:`chebyshev2`'s interval ends at the same top.
 JACOBI_TOP = 4.0 / 3.0
 LAMBDA_MARGIN = 1.05
+
+
+def largest_eigenvalue(apply, n, rng, sweeps=12):
+    """``lambda_max`` of ``D^-1 A`` (``A`` symmetric positive definite, ``D`` its (block) diagonal) by
+    ``sweeps`` steps of power iteration from a random start; ``apply(x)`` gives ``D^-1 A x``."""
+    x = rng.standard_normal(n)
+    lam = 1.0
+    for _ in range(sweeps):
+        y = apply(x)
+        lam = float(np.linalg.norm(y) / np.linalg.norm(x))
+        x = y / max(np.linalg.norm(y), 1e-300)
+    return lam
 
 
 def jacobi_weight(lam):
@@ -228,12 +240,7 @@ class Multigrid:
                 break
             dinv = 1.0 / A.diagonal()
             # damped Jacobi, weight JACOBI_TOP / lambda_max(D^-1 A): smooths the upper 3/4 of the spectrum
-            x = rng.standard_normal(A.shape[0])
-            lam = 1.0
-            for _ in range(12):
-                y = dinv * (A @ x)
-                lam = float(np.linalg.norm(y) / np.linalg.norm(x))
-                x = y / np.linalg.norm(y)
+            lam = largest_eigenvalue(lambda x, A=A, dinv=dinv: dinv * (A @ x), A.shape[0], rng)
             self.levels.append((A, P, jacobi_weight(lam) * dinv))
             A, ijk = (P.T @ A @ P).tocsr(), cijk
             ratio = ratio if layers else 2 * ratio
