@@ -16,12 +16,25 @@ Inkscape layer's name) or ``id`` is, in any case, one of
 A filled shape outside such a group is an error (hide it, ``display:none``, or delete it).
 With ``by="colour"`` the fill colour says it instead: :data:`FACE_COLOURS` (red top, blue
 bottom, black both, green film), or a mapping given by the caller. Shapes without a fill
-(strokes, guides) are left out: with a warning naming them in a ``top``, ``bottom`` or ``both``
-group, and a ``film`` group whose shapes all lack a fill is an error (the film is not the whole
-page then). Clipping and masking (``clip-path``, ``mask``) are not applied, so a face's shape that
-is clipped or masked (or, by colour, any shape) is an error: release the clip or intersect the
-shapes in the drawing program. Fills use the shape's ``fill-rule`` (``nonzero`` or
-``evenodd``); transforms, ``<use>`` clones, groups and units are resolved by svgelements.
+(strokes, guides) are left out, with a warning naming those in a face's group (by layer) or
+whose stroke has a face's colour (by colour, naming the colour and the face); where all the
+film's shapes lack a fill it is an error instead (the film is not the whole page then). Fills
+use the shape's ``fill-rule`` (``nonzero`` or ``evenodd``); transforms, ``<use>`` clones,
+groups and units are resolved by svgelements, and so are fills and strokes set by a ``<style>``
+sheet: only its rules for ``*``, a type, ``.class``, ``#id`` or ``type.class``, and only from
+sheets that come before the shape (as Inkscape and Illustrator write them).
+
+**Clipping and masking** are not applied, so a clip or mask on a face's shape, on a group
+holding it or on what it clones with ``<use>`` (by colour: on any shape) is an error: release
+the clip or intersect the shapes in the drawing program. They are set by the attributes
+``clip-path`` and ``mask``, and by the CSS properties ``clip-path``, ``mask`` and
+``mask-image`` (and their ``-webkit-`` forms) in ``style`` or in a ``<style>`` sheet; a value
+``none`` sets none. A sheet's rule counts wherever the sheet stands, inside ``@media`` too, and
+whatever other rules or ``style`` say (a clip that a more specific rule would release is still
+an error), for selectors of type, ``*``, ``.class`` and ``#id``, compounded (``rect.c``) or in
+comma-separated lists. A rule that clips or masks with any other selector (combinators,
+attribute selectors, pseudo-classes) is not resolved: it is an error, naming the ``<style>``,
+by colour and in a drawing with face groups by layer.
 
 **Geometry.** Lengths come out in millimetres from the page size (``width``/``height`` with
 units; user units without them are CSS pixels, 96 per inch). The drawing's y axis points
@@ -32,7 +45,8 @@ The grid is cropped to the film's bounding box.
 
 **Errors.** XML that is not well formed is reported with its line and column; a ``<path>``
 whose ``d`` does not parse, text not converted to paths, clipped or masked face shapes, and
-shapes outside any face are reported naming the element (tag, id, line).
+shapes outside any face are reported naming the element (tag, id, line); a style sheet's rule
+that clips or masks by a selector not resolved names its ``<style>``.
 
 svgelements is imported by the functions that read SVG.
 """
@@ -157,25 +171,82 @@ _GEOMETRY = ("x", "y", "width", "height", "cx", "cy", "r", "rx", "ry", "x1", "y1
 _NOT_FINITE = re.compile(r"(?i)(?<![a-z])(nan|inf(inity)?)(?![a-z])")
 
 
-#: Properties that clip or mask what an element draws: svgelements does not apply them.
+#: Presentation attributes that clip or mask what an element draws: svgelements does not apply them.
 _CLIPPING = ("clip-path", "mask")
+#: CSS properties (in ``style`` or a style sheet) that clip or mask what an element draws.
+_CLIPPING_CSS = (*_CLIPPING, "mask-image", "-webkit-clip-path", "-webkit-mask", "-webkit-mask-image")
 #: Elements whose content is not drawn where it stands (only where referenced, e.g. by ``<use>``).
 _UNDRAWN = ("defs", "clipPath", "mask", "symbol", "pattern", "marker")
 _XLINK_HREF = "{http://www.w3.org/1999/xlink}href"
+_CSS_COMMENT = re.compile(r"/\*.*?\*/", re.S)
+#: A rule without nested blocks (the inner rules of ``@media`` and the like are read as if unconditional).
+_CSS_RULE = re.compile(r"([^{}]*)\{([^{}]*)\}")
+#: A compound selector this module resolves: a type or ``*``, then any ``.class`` and ``#id``.
+_CSS_COMPOUND = re.compile(r"(\*|[A-Za-z_][\w-]*)?((?:[.#][\w-]+)*)")
 
 
-def _clip_of(el):
-    """The element's first clip-path or mask reference (attribute or ``style``) as ``'name=value'``, or None;
-    ``none`` is no reference."""
-    found = [(key, el.get(key)) for key in _CLIPPING]
-    for decl in (el.get("style") or "").split(";"):
+def _clip_value(key, value):
+    """``'key=value'`` when ``value`` clips or masks; None when it is empty or ``none``."""
+    value = (value or "").replace("!important", "").strip()
+    return f"{key}={value!r}" if value and value.lower() != "none" else None
+
+
+def _css_clip(declarations):
+    """The first clip or mask among CSS declarations (``'name: value; ...'``) as ``'name=value'``, or None."""
+    for decl in declarations.split(";"):
         key, sep, value = decl.partition(":")
-        if sep and key.strip().lower() in _CLIPPING:
-            found.append((key.strip().lower(), value))
-    for key, value in found:
-        value = (value or "").replace("!important", "").strip()
-        if value and value.lower() != "none":
-            return f"{key}={value!r}"
+        key = key.strip().lower()
+        ref = _clip_value(key, value) if sep and key in _CLIPPING_CSS else None
+        if ref:
+            return ref
+    return None
+
+
+def _compound(selector):
+    """``(type or None, classes, ids)`` of a compound selector this module resolves, or None."""
+    m = _CSS_COMPOUND.fullmatch(selector)
+    if not m or not selector:
+        return None
+    parts = re.findall(r"([.#])([\w-]+)", m.group(2))
+    tag = None if m.group(1) in (None, "*") else m.group(1)
+    return tag, {v for k, v in parts if k == "."}, {v for k, v in parts if k == "#"}
+
+
+def _selects(compound, el):
+    """Whether a compound selector (:func:`_compound`) selects the element."""
+    tag, classes, ids = compound
+    return ((tag is None or el.tag.rsplit("}", 1)[-1] == tag) and classes <= set((el.get("class") or "").split())
+            and ids <= {el.get("id")})
+
+
+def _sheet_clips(root):
+    """The style sheets' rules that clip or mask: ``[(selector, compound or None, 'name=value', <style>), ...]``,
+    one per selector of a comma-separated list; compound None where the selector is not resolved (combinators,
+    attribute selectors, pseudo-classes, namespaces)."""
+    rules = []
+    for style in root.iter():
+        if style.tag.rsplit("}", 1)[-1] != "style":
+            continue
+        for selectors, declarations in _CSS_RULE.findall(_CSS_COMMENT.sub("", "".join(style.itertext()))):
+            ref = _css_clip(declarations)
+            for selector in (selectors.split(",") if ref else ()):
+                rules.append((selector.strip(), _compound(selector.strip()), ref, style))
+    return rules
+
+
+def _clip_of(el, sheet=()):
+    """The element's first clip-path or mask reference (attribute, ``style``, or a rule of the style sheet
+    ``sheet`` (:func:`_sheet_clips`) that selects it) as ``'name=value'``, or None; ``none`` is no reference."""
+    for key in _CLIPPING:
+        ref = _clip_value(key, el.get(key))
+        if ref:
+            return ref
+    ref = _css_clip(el.get("style") or "")
+    if ref:
+        return ref
+    for selector, compound, ref, _ in sheet:
+        if compound is not None and _selects(compound, el):
+            return f"{ref} set by the style sheet's rule {selector!r}"
     return None
 
 
@@ -185,20 +256,20 @@ def _use_target(el, ids):
     return ids.get(ref[1:]) if ref.startswith("#") else None
 
 
-def _clip_in(el, ids, seen):
-    """``(element, reference)`` of the first clip-path or mask on ``el``, its content or what its ``<use>``
-    elements clone, or None."""
+def _clip_in(el, ids, seen, sheet):
+    """``(element, reference)`` of the first clip-path or mask on ``el`` (by ``sheet`` too, :func:`_clip_of`), its
+    content or what its ``<use>`` elements clone, or None."""
     if id(el) in seen:
         return None
     seen.add(id(el))
-    ref = _clip_of(el)
+    ref = _clip_of(el, sheet)
     if ref:
         return el, ref
     if el.tag.rsplit("}", 1)[-1] in ("clipPath", "mask"):
         return None
     target = _use_target(el, ids) if el.tag.rsplit("}", 1)[-1] == "use" else None
     for child in [*el, *([target] if target is not None else [])]:
-        found = _clip_in(child, ids, seen)
+        found = _clip_in(child, ids, seen, sheet)
         if found:
             return found
     return None
@@ -212,6 +283,20 @@ def _face_of(el):
     return None
 
 
+def _refuse_unresolved(sheet, by, root, lines, name):
+    """Raise naming the ``<style>`` if a rule of the style sheet whose selector is not resolved clips or masks, and
+    the drawing has shapes that may not be clipped (any by colour; those in face groups by layer)."""
+    unresolved = [rule for rule in sheet if rule[1] is None]
+    if not unresolved or not (by == "colour" or any(e.tag.rsplit("}", 1)[-1] == "g" and _face_of(e)
+                                                     for e in root.iter())):
+        return
+    selector, _, ref, style = unresolved[0]
+    raise GdfeError(f"{name}: {_describe(style, lines.get(id(style), '?'))}: the style sheet clips or masks "
+                    f"({ref} for {selector!r}) with a selector that is not resolved (only type, *, .class and #id "
+                    "selectors, compounded or in comma-separated lists, are): clipping and masking are not applied; "
+                    "release the clip or mask in the drawing program, or delete the rule")
+
+
 def _prepare(path, by):
     """Parse, check and mark the drawing; returns svgelements' parsed document and the element lines."""
     import svgelements as se
@@ -221,6 +306,8 @@ def _prepare(path, by):
     ids = {el.get("id"): el for el in root.iter() if el.get("id")}
     unclipped = ("clipping and masking are not applied (the shape would be read whole); release the clip or "
                  "mask, or intersect the shapes, in the drawing program")
+    sheet = _sheet_clips(root)
+    _refuse_unresolved(sheet, by, root, lines, path.name)
 
     def walk(el, face, drawn=True):
         tag = el.tag.rsplit("}", 1)[-1]
@@ -228,14 +315,14 @@ def _prepare(path, by):
         if tag == "g" and by == "layer":
             face = _face_of(el) or face
         drawn = drawn and tag not in _UNDRAWN
-        ref = _clip_of(el) if drawn else None
+        ref = _clip_of(el, sheet) if drawn else None
         if ref and (by == "colour" or face is not None):  # a face's shape, or any shape by colour
             raise GdfeError(f"{path.name}: {where}: {ref}: {unclipped}")
         if ref and any(e.tag.rsplit("}", 1)[-1] == "g" and _face_of(e) for e in el.iter()):
             raise GdfeError(f"{path.name}: {where}: {ref} on a group holding face groups: {unclipped}")
         if drawn and (by == "colour" or face is not None):
             target = _use_target(el, ids) if tag == "use" else None
-            found = _clip_in(target, ids, {id(el)}) if target is not None else None
+            found = _clip_in(target, ids, {id(el)}, sheet) if target is not None else None
             if found:
                 raise GdfeError(f"{path.name}: {where}: clones {_describe(found[0], lines.get(id(found[0]), '?'))}"
                                 f" with {found[1]}: {unclipped}")
@@ -358,15 +445,7 @@ def svg_masks(path, pixel, by="layer", colours=None):
     svg, root = _prepare(path, by)
     W, H, mm = _page(root, svg, path.name)
     polys, counts, unfilled = _face_shapes(svg, path.name, by, colour_face, pixel / mm / 10.0, mm)
-    if not polys["film"] and unfilled["film"]:  # else the whole page would silently be the film
-        n = len(unfilled["film"])
-        raise GdfeError(f"{path.name}: the film group's {n} shape(s) have no fill ({', '.join(unfilled['film'][:3])}"
-                        f"{', ...' if n > 3 else ''}): an outline drawn as a stroke is not read; fill the film's shape")
-    left = [where for face in FACES for where in unfilled[face]]
-    if left:
-        log.warning("%s: %d shape(s) in face groups have no fill and are left out (an outline drawn as a stroke is "
-                    "not read; fill it to coat it): %s%s", path.name, len(left), ", ".join(left[:3]),
-                    ", ..." if len(left) > 3 else "")
+    _check_unfilled(polys, unfilled, by, path.name)
     from gdfe.resources import check_grid
 
     # before any grid is made: the page's size on the printer's grid
@@ -379,6 +458,22 @@ def svg_masks(path, pixel, by="layer", colours=None):
         log.info("%s: %d coated pixels lie outside the film and are left out", path.name, int(outside.sum()))
     return SvgMasks(top=(top & film)[sl], bottom=(bottom & film)[sl], film=film[sl], pixel=pixel,
                     origin=np.array([ii.min() * pixel, jj.min() * pixel]), shapes=counts)
+
+
+def _check_unfilled(polys, unfilled, by, name):
+    """An error if the film's shapes all lack a fill (else the whole page would silently be the film), and a
+    warning naming the faces' shapes without a fill (:func:`_face_shapes`)."""
+    if not polys["film"] and unfilled["film"]:
+        n = len(unfilled["film"])
+        whose = f"the film group's {n} shape(s)" if by == "layer" else f"{n} shape(s) in the film's colour"
+        raise GdfeError(f"{name}: {whose} have no fill ({', '.join(unfilled['film'][:3])}{', ...' if n > 3 else ''}): "
+                        "an outline drawn as a stroke is not read; fill the film's shape")
+    left = [where for face in FACES for where in unfilled[face]]
+    if left:
+        log.warning("%s: %d shape(s) %s have no fill and are left out (an outline drawn as a stroke is not read; "
+                    "fill it to coat it): %s%s", name, len(left),
+                    "in face groups" if by == "layer" else "stroked in a face's colour", ", ".join(left[:3]),
+                    ", ..." if len(left) > 3 else "")
 
 
 def _colour_faces(colours):
@@ -395,7 +490,8 @@ def _colour_faces(colours):
 def _face_shapes(svg, name, by, colour_face, step, mm):
     """The drawing's filled shapes by face: face -> ``[(polygons [mm, y down], fill rule, where), ...]``,
     how many shapes each face has, and face -> the ``where`` of each shape without a fill in that face's
-    group (by layer; none by colour). A filled shape of no face is an error naming it."""
+    group (by layer) or whose stroke has that face's colour (by colour, then with the colour). A filled shape
+    of no face is an error naming it."""
     import svgelements as se
 
     polys = {f: [] for f in FACES}
@@ -410,7 +506,7 @@ def _face_shapes(svg, name, by, colour_face, step, mm):
         where = el.values.get("gdfe-where", type(el).__name__)
         # a <line> encloses no area: its fill (black by default) paints nothing
         if fill is None or fill.value is None or fill.alpha == 0 or isinstance(el, se.SimpleLine):
-            face = el.values.get("gdfe-face") if by == "layer" else None
+            face, where = _unfilled_face(el, where, by, colour_face)
             if face is not None:
                 unfilled[face].append(where)
             continue
@@ -436,6 +532,19 @@ def _face_shapes(svg, name, by, colour_face, step, mm):
             polys[face].append((sub, rule, where))
             counts[face] += 1
     return polys, counts, unfilled
+
+
+def _unfilled_face(el, where, by, colour_face):
+    """The face of a shape without a fill (its group's by layer, its stroke colour's by colour; None if none)
+    and its ``where``, which by colour names the stroke's colour and face."""
+    if by == "layer":
+        return el.values.get("gdfe-face"), where
+    stroke = el.stroke
+    if stroke is None or stroke.value is None or stroke.alpha == 0:
+        return None, where
+    key = str(stroke.hex)[:7].lower()
+    face = colour_face.get(key)
+    return face, f"{where}: stroke {key}, the {face} face's colour"
 
 
 def _face_masks(polys, page, pixel, name):
