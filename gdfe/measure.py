@@ -212,9 +212,15 @@ def panel_angles(result, design=None, min_cells=2):
 
     Panels are the connected groups (side by side in the plane) of rigid cells, at least
     ``min_cells`` columns each; hinges the connected groups of the other cells. Where a hinge
-    touches two panels, its fold is the angle of the rotation between the panels' best
-    rotations from the flat print (:func:`rigid_align` of their vertices): 0 flat, pi folded
-    onto itself (a fold beyond pi reads as less; :func:`fold_angle` unwraps a hinge strip's).
+    touches two panels ``a`` and ``b``, its fold is the angle of the rotation between the
+    panels' best rotations from the flat print (:func:`rigid_align` of their vertices), signed
+    as :func:`fold_angle` signs a strip's: positive where the part curls towards +z (the top
+    face inside) about the axis ``d x z``, ``d`` the flat direction from ``a``'s cells at the
+    hinge to ``b``'s. A fold beyond pi is unwrapped as :func:`fold_angle` unwraps a strip's: the
+    hinge's cells between the two panels, in slices one cell across ``d``, are a chain of frames
+    whose small turns about that axis add up to the fold; of the angles equal to the panels'
+    rotation (2 pi apart) the one nearest that sum is taken. (Where the chain's turns are not
+    small, or the hinge joins more than two panels, the angle is the one in (-pi, pi].)
 
     Parameters
     ----------
@@ -230,8 +236,6 @@ def panel_angles(result, design=None, min_cells=2):
         ``panels`` (two panel numbers, 1-based, ordered by their first cell), ``hinge_cells``
         (columns of the hinge joining them) and ``angle_rad``; sorted by the panels.
     """
-    import math
-
     from scipy import ndimage
 
     from gdfe.material import Material
@@ -253,27 +257,93 @@ def panel_angles(result, design=None, min_cells=2):
     panels, n_panels = ndimage.label(rigid)
     sizes = np.bincount(panels.ravel(), minlength=n_panels + 1)
     hinges, n_hinges = ndimage.label(other & ~rigid)
-    rot = {}
-
-    def rotation(label):
-        if label not in rot:
-            cols = panels[i, j] == label
-            vid = np.unique(mesh.cells[cols])
-            rot[label] = rigid_align(mesh.points[vid], points[vid])[0]
-        return rot[label]
+    frames = _PanelFrames(points, design, panels[i, j])
+    cell_hinge = hinges[i, j]
 
     found = {}
     cross = ndimage.generate_binary_structure(2, 1)
     for h, box in enumerate(ndimage.find_objects(hinges), start=1):
         box = tuple(slice(max(0, b.start - 1), b.stop + 1) for b in box)  # the hinge and its neighbours
         region = hinges[box] == h
-        touching = np.unique(panels[box][ndimage.binary_dilation(region, cross) & rigid[box]])
+        near = ndimage.binary_dilation(region, cross) & rigid[box]
+        touching = np.unique(panels[box][near])
         touching = [int(t) for t in touching if t and sizes[t] >= min_cells]
         for a_idx, a in enumerate(touching):
             for b in touching[a_idx + 1:]:
-                rel = rotation(a).T @ rotation(b)
-                angle = math.acos(float(np.clip((np.trace(rel) - 1.0) / 2.0, -1.0, 1.0)))
+                at = _at_hinge(panels[box], near, a, box)
+                bt = _at_hinge(panels[box], near, b, box)
+                angle = frames.fold(a, b, at, bt, np.nonzero(cell_hinge == h)[0], unwrap=len(touching) == 2)
                 key = (a, b)
                 found.setdefault(key, {"panels": [a, b], "hinge_cells": 0, "angle_rad": angle})
                 found[key]["hinge_cells"] += int(region.sum())
     return [found[k] for k in sorted(found)]
+
+
+def _at_hinge(labels, near, panel, box):
+    """Grid indices ``(k, 2)`` of panel ``panel``'s cells next to a hinge (``near`` within ``box``)."""
+    ii, jj = np.nonzero(near & (labels == panel))
+    return np.column_stack([ii + box[0].start, jj + box[1].start])
+
+
+class _PanelFrames:
+    """Rigid frames of panels and of a hinge's slices, and the signed, unwrapped fold between two panels."""
+
+    def __init__(self, points, design, cell_panel):
+        self.points, self.design, self.cell_panel = points, design, cell_panel
+        self.spacing = np.asarray(design.mesh.spacing[:2], float)
+        self.rot = {}
+
+    def _centre(self, ij):
+        """Centres ``(k, 2)`` [mm] in the flat print of the cells at grid indices ``ij``, from the grid's corner."""
+        return (np.asarray(ij, float) + 0.5) * self.spacing
+
+    def _frame(self, cells):
+        vid = np.unique(self.design.mesh.cells[cells])
+        return rigid_align(self.design.mesh.points[vid], self.points[vid])[0]
+
+    def panel(self, label):
+        if label not in self.rot:
+            self.rot[label] = self._frame(np.nonzero(self.cell_panel == label)[0])
+        return self.rot[label]
+
+    def fold(self, a, b, at_a, at_b, hinge_cells, unwrap=True):
+        """The fold [rad] from panel ``a`` to ``b``: ``at_a``, ``at_b`` their cells (grid indices) next to the
+        hinge whose cells are ``hinge_cells``."""
+        d = self._centre(at_b).mean(axis=0) - self._centre(at_a).mean(axis=0)
+        norm = float(np.hypot(*d))
+        Qa, Qb = self.panel(a), self.panel(b)
+        rel = Qa.T @ Qb
+        theta = float(np.arccos(np.clip((np.trace(rel) - 1.0) / 2.0, -1.0, 1.0)))
+        if norm == 0.0:
+            return theta
+        d = d / norm
+        axis = np.array([d[1], -d[0], 0.0])  # d x z
+        direct = theta if float(_rotvec(rel[None])[0] @ axis) >= 0.0 else -theta
+        if not unwrap:
+            return direct
+        chain = self._chain(d, at_a, at_b, hinge_cells)
+        if chain is None:
+            return direct
+        Q = np.concatenate([Qa[None], chain, Qb[None]])
+        steps = _rotvec(np.einsum("kji,kjl->kil", Q[:-1], Q[1:]))
+        if np.abs(steps @ axis).max() > 0.5 * np.pi or np.linalg.norm(steps, axis=1).max() > 0.5 * np.pi:
+            return direct
+        turn = float((steps @ axis).sum())
+        return direct + 2.0 * np.pi * round((turn - direct) / (2.0 * np.pi))
+
+    def _chain(self, d, at_a, at_b, hinge_cells):
+        """Frames of the hinge's cells between the two panels' cells at it, in slices one cell across ``d``
+        (ordered from ``a`` to ``b``), or None where there are none."""
+        c = self._centre(self.design.mesh.cell_ij[hinge_cells, :2])
+        ends = self._centre(np.concatenate([at_a, at_b]))
+        e = np.array([-d[1], d[0]])  # across d, in the plane
+        t, band = c @ e, ends @ e
+        half = 0.5 * float(np.abs(self.spacing * e).sum())
+        keep = (t >= band.min() - half) & (t <= band.max() + half)
+        if not keep.any():
+            return None
+        width = float(np.abs(self.spacing * d).sum())  # a cell's extent along d
+        s = (c[keep] - ends[:len(at_a)].mean(axis=0)) @ d
+        slices = np.floor(s / width).astype(int)
+        cells = hinge_cells[keep]
+        return np.array([self._frame(cells[slices == k]) for k in np.unique(slices)])

@@ -304,10 +304,11 @@ def test_simulate_prints_the_fold_angles_it_measured(tmp_path, capsys):
                            '"RRRTTTRRRBBBRRR"]\n', "zig.toml")
     rc, out, _ = _run(capsys, ["simulate", str(path), "--out", str(tmp_path / "o")])
     assert rc == 0
-    assert pytest.importorskip("re").search(r"fold angles \(2\) panels 1-2: [0-9.]+ rad, panels 2-3: [0-9.]+ rad", out)
+    # the T hinge folds the top face inside (positive, as fold_angle signs a strip's), the B hinge the other way
+    assert pytest.importorskip("re").search(r"fold angles \(2\) panels 1-2: [0-9.]+ rad, panels 2-3: -[0-9.]+ rad", out)
     summary = json.loads((tmp_path / "o" / "result.json").read_text())
     assert [r["panels"] for r in summary["panel_angles"]] == [[1, 2], [2, 3]]
-    assert all(0.3 < r["angle_rad"] < 1.5 for r in summary["panel_angles"])
+    assert all(0.3 < s * r["angle_rad"] < 1.5 for s, r in zip((1, -1), summary["panel_angles"]))
 
 
 def test_a_designs_d_reaches_its_result(tmp_path, capsys):
