@@ -20,8 +20,8 @@ import numpy as np
 
 from gdfe._validation import GdfeError, GdfeTypeError, describe
 
-__all__ = ["write_vtu", "write_series", "render_png", "write_json", "write_text", "check_creatable", "surface_faces",
-           "boundary_quads", "atomic_path", "json_default", "save_figure", "OutputFolder", "MATERIAL_CODES", "MANIFEST", "MARKER",
+__all__ = ["read_mesh", "write_vtu", "write_series", "render_png", "write_json", "write_text", "check_creatable",
+           "surface_faces", "boundary_quads", "atomic_path", "json_default", "save_figure", "OutputFolder", "MATERIAL_CODES", "MANIFEST", "MARKER",
            "folder_state", "hex_meshio", "material_field_data", "outline_edges", "EDGE_CELLS", "MATERIAL_LABELS",
            "VIEWS"]
 
@@ -30,6 +30,35 @@ log = logging.getLogger(__name__)
 #: Colours of the materials in pictures (RGB 0-1): rigid grey, contracting orange/blue, shrink green.
 MATERIAL_COLOURS = np.array([[0.62, 0.62, 0.66], [0.95, 0.55, 0.15], [0.2, 0.5, 0.9], [0.3, 0.75, 0.4]])
 
+
+
+def read_mesh(path, what=None):
+    """``meshio.read(path)``, its failures (and what it prints) turned into one :class:`GdfeError`.
+
+    meshio raises many kinds of error on a damaged file, and on some (a truncated VTU) prints a
+    line and exits; either way the error names the file and says what it was expected to be
+    (``what``, default the file's format, e.g. "a readable PLY file"). What meshio prints on a
+    file it reads is logged as a warning.
+    """
+    import io
+
+    import meshio
+
+    path = Path(path)
+    what = what or f"a readable {path.suffix[1:].upper()} file"
+    said = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said):
+            mesh = meshio.read(path)
+    except (Exception, SystemExit) as exc:  # meshio raises many kinds, and exits on a corrupt file
+        detail = " ".join(line.strip() for line in said.getvalue().splitlines() if line.strip())
+        if not isinstance(exc, SystemExit):
+            detail = " ".join(f"{detail} {type(exc).__name__}: {exc}".split())  # one line (meshio's span several)
+        raise GdfeError(f"{path.name}: expected {what}, got one meshio cannot read"
+                        + (f" ({detail})" if detail else "")) from None
+    if said.getvalue().strip():
+        log.warning("%s: meshio: %s", path.name, said.getvalue().strip())
+    return mesh
 
 def _not_a_file_name(path):
     """Why no file could be renamed onto ``path`` (``"an empty name"``, ``"a folder"``), or ``""``."""

@@ -66,6 +66,21 @@ def test_series_reads_back_and_view_command(folded, tmp_path, capsys):
         read_series(tmp_path / "bad.pvd")
 
 
+def test_a_truncated_frame_is_named(folded, tmp_path, capsys):
+    """meshio prints a line and exits on a truncated VTU: the command says which file, and its --json error
+    object comes out, instead of a bare line and no object."""
+    import json
+
+    write_series(folded, tmp_path, name="hinge")
+    frame = sorted(tmp_path.glob("hinge*.vtu"))[-1]
+    frame.write_bytes(frame.read_bytes()[: frame.stat().st_size // 2])
+    with pytest.raises(ValueError, match=rf"{frame.name}: expected a VTU frame gdfe wrote, got one meshio cannot read"):
+        read_series(tmp_path / "hinge.pvd")
+    assert main(["view", str(tmp_path), "--json"]) == 1
+    out = json.loads(capsys.readouterr().out)
+    assert out["error"]["type"] == "GdfeError" and frame.name in out["error"]["message"]
+
+
 def test_report_has_the_interactive_view():
     from studies.validation_report import interactive_view
 

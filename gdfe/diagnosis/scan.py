@@ -11,7 +11,6 @@ Lengths in mm.
 
 from __future__ import annotations
 
-import contextlib
 import io
 import logging
 
@@ -107,25 +106,12 @@ def check_points(name, points, min_size=4):
 
 
 def _read_mesh(path):
-    """``meshio.read(path)``, its failures (and what it prints) turned into one :class:`GdfeError`."""
-    import meshio
+    """:func:`gdfe.io.read_mesh` of a scan, a PLY's header checked first."""
+    from gdfe.io import read_mesh
 
-    fmt = path.suffix[1:].upper()
-    if fmt == "PLY":
+    if path.suffix.lower() == ".ply":
         _check_ply_header(path)
-    said = io.StringIO()
-    try:
-        with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said):
-            mesh = meshio.read(path)
-    except (Exception, SystemExit) as exc:  # meshio raises many kinds, and exits on a corrupt file
-        detail = " ".join(line.strip() for line in said.getvalue().splitlines() if line.strip())
-        if not isinstance(exc, SystemExit):
-            detail = " ".join(f"{detail} {type(exc).__name__}: {exc}".split())  # one line (meshio's span several)
-        raise GdfeError(f"{path.name}: expected a readable {fmt} file, got one meshio cannot read"
-                        + (f" ({detail})" if detail else "")) from None
-    if said.getvalue().strip():
-        log.warning("%s: meshio: %s", path.name, said.getvalue().strip())
-    return mesh
+    return read_mesh(path)
 
 
 #: How far into a PLY file its header must end [bytes].

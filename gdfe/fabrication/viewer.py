@@ -97,9 +97,8 @@ def read_series(pvd):
     pvd : str or Path
         The ``.pvd`` collection file.
     """
-    import meshio
-
     from gdfe.fabrication.surface import hex_surface
+    from gdfe.io import read_mesh
 
     pvd = check_file("series", pvd, suffixes=(".pvd",), what="ParaView collection")
     try:
@@ -120,7 +119,7 @@ def read_series(pvd):
             raise GdfeError(f"{pvd.name}: DataSet {k}: file {f!r} not found beside it")
         entries.append((t, pvd.parent / f))
     entries.sort(key=lambda e: e[0])
-    first = meshio.read(entries[0][1])
+    first = read_mesh(entries[0][1], "a VTU frame gdfe wrote")
     cells = first.get_cells_type("hexahedron")
     if not len(cells):
         raise GdfeError(f"{entries[0][1].name}: expected hexahedral cells, got {[c.type for c in first.cells]}")
@@ -128,7 +127,7 @@ def read_series(pvd):
     surf = hex_surface(first.points, cells, mat)
     frames = []
     for _, f in entries:
-        m = first if f == entries[0][1] else meshio.read(f)
+        m = first if f == entries[0][1] else read_mesh(f, "a VTU frame gdfe wrote")
         if m.points.shape != first.points.shape:
             raise GdfeError(f"{f.name}: expected {len(first.points)} points like the first frame, got {len(m.points)}")
         frames.append(np.asarray(m.points, float)[surf.point_index])

@@ -310,12 +310,9 @@ def read_triangle_mesh(path):
     Quadrilaterals are split; duplicated vertices (an STL's) are merged.
     """
     path = check_file("target", path, suffixes=MESH_SUFFIXES, what="triangle mesh")
-    import meshio
+    from gdfe.io import read_mesh
 
-    try:
-        mesh = meshio.read(path)
-    except Exception as exc:  # meshio raises its own errors, and ValueError/KeyError on bad files
-        raise GdfeError(f"{path.name}: not a readable mesh ({type(exc).__name__}: {exc})") from None
+    mesh = read_mesh(path, "a readable triangle mesh")
     tris = []
     for block in mesh.cells:
         if block.type == "triangle":
