@@ -28,6 +28,8 @@ changes where Newton's method begins: every draw meets the same stopping test.
 
 The noise of a test is not in it: it is the scatter of one measured hinge, not of a part's every
 hinge at once. Draws that do not converge are counted and left out of the intervals, and said so.
+So are intervals at a level the converged draws cannot resolve (fewer than one draw beyond each
+end, ``n (1 - level) / 2 < 1``: :func:`draws_for`), which are narrower than their level says.
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ from gdfe._validation import GdfeError, check_int, check_number
 from gdfe.measure import rigid_align
 
 __all__ = ["LEVEL", "PILOT", "Ensemble", "fold_ensemble", "secant_starts", "has_predictive_content", "align_rigidly",
-           "wilson_interval", "write_spread", "plot_band"]
+           "draws_for", "wilson_interval", "write_spread", "plot_band"]
 
 #: Default level of the intervals.
 LEVEL = 0.9
@@ -68,6 +70,13 @@ def align_rigidly(points, reference):
     ``reference``: :func:`gdfe.measure.rigid_align` applied."""
     Q, t = rigid_align(points, reference)
     return np.asarray(points, float) @ Q.T + t
+
+
+def draws_for(level):
+    """The fewest draws whose central interval at ``level`` has a draw beyond each end, ``n (1 - level) / 2 >= 1``:
+    20 for 0.9, 40 for 0.95; with fewer, the interval's ends lie within the range of the draws, and it is narrower
+    than the level says."""
+    return math.ceil(2.0 / (1.0 - level) * (1.0 - 1e-9))  # round-off: 2 / (1 - 0.9) is 20.000000000000004
 
 
 def wilson_interval(k, n, level=LEVEL):
@@ -147,6 +156,17 @@ class Ensemble:
         lo, hi = np.quantile(v, [(1 - self.level) / 2, (1 + self.level) / 2])
         return (float(lo), float(hi))
 
+    @property
+    def warnings(self):
+        """Sentences on what the intervals cannot say: too few converged draws for :attr:`level`
+        (:func:`draws_for`)."""
+        need, m = draws_for(self.level), self.n_converged
+        if not 0 < m < need:
+            return []
+        return [f"{m} converged draws cannot resolve {100 * self.level:g} % intervals: their ends lie within the "
+                f"range of the draws, so the intervals are narrower than the level says (and may miss the nominal "
+                f"value); that level needs at least {need} draws (or a lower level)"]
+
     def probability_below(self, name, threshold):
         """``(p, (lo, hi))``: the share of converged draws whose measure ``name`` is at most ``threshold``, with
         its Wilson interval at :attr:`level`."""
@@ -162,7 +182,8 @@ class Ensemble:
                 "draws": self.n_converged}
 
     def as_dict(self):
-        """The JSON of ``"uncertainty"``: intervals of the fold angles and measures, draws, time."""
+        """The JSON of ``"uncertainty"``: intervals of the fold angles and measures, draws, time, and
+        :attr:`warnings`."""
         angles = [{"label": lab, "fold_angle_rad": float(self.nominal_angles[j]),
                    "interval_rad": list(self.interval(self.angles[:, j])),
                    "sd_rad": float(np.std(self.angles[:, j], ddof=1)) if len(self.angles) > 1 else math.nan}
@@ -181,7 +202,7 @@ class Ensemble:
                 "draw_seconds_median": float(np.median(self.draw_seconds)),
                 "draw_cpu_seconds_total": float(np.sum(self.draw_cpu_seconds)),
                 "iterations_median": float(np.median(self.iterations)),
-                "start": self.start}
+                "start": self.start, "warnings": self.warnings}
 
     def text(self):
         """A few lines for a command's text output."""
@@ -189,6 +210,7 @@ class Ensemble:
                  f"{100 * self.level:g} % intervals, {self.seconds:.1f} s"]
         if self.n_converged < self.n:
             lines.append(f"    {self.n - self.n_converged} draws did NOT converge and are left out of the intervals")
+        lines += [f"    WARNING: {w}" for w in self.warnings]
         for j, lab in enumerate(self.labels[:8]):
             lo, hi = self.interval(self.angles[:, j])
             lines.append(f"    {lab}: {self.nominal_angles[j]:.4f} rad, interval {lo:.4f} to {hi:.4f} rad")
@@ -278,7 +300,7 @@ def fold_ensemble(design, model, n, *, nominal, measure, labels=None, level=LEVE
     level : float
         Level of the intervals (default 0.9).
     seed : int
-        Seed of the draws.
+        Seed of the draws (an integer >= 0).
     process : dict, optional
         The part's process variables for the model.
     options : dict, optional
@@ -298,6 +320,7 @@ def fold_ensemble(design, model, n, *, nominal, measure, labels=None, level=LEVE
     from gdfe.predict import draw_models
 
     n = check_int("n", n, minimum=2)
+    check_int("seed", seed, minimum=0)
     level = check_number("level", level, minimum=0.0)
     if not 0 < level < 1:
         raise GdfeError(f"level: expected a number between 0 and 1, got {level:g}")

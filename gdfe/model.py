@@ -124,6 +124,21 @@ MECHANISMS = {
 PHYSICAL_RANGES = {k: (r.lo, r.hi, r.why) for k, r in RANGES.items()}
 
 
+#: Units of the process mechanisms' parameters, which are those of the part's process column
+#: (degrees Celsius, minutes, ...): any unit the file gives is the column's, and is kept.
+_COLUMN_UNITS = ("unit of the column", "1 / unit of the column")
+
+
+def _check_unit(name, unit, own):
+    """Refuse a parameter's ``unit`` other than its ``own`` (:data:`PRINCIPLES`, :data:`MECHANISMS`):
+    the value is used in its own unit whatever the file says, so another would be a silent error."""
+    if own in _COLUMN_UNITS or unit == own:
+        return
+    expected = f"the unit {own!r}" if own else "no unit (it is dimensionless)"
+    raise GdfeError(f"{name}.unit: expected {expected}, got {unit!r}: gdfe reads {name} in "
+                    f"{own or 'no unit'} only; convert the value (or leave the unit out)")
+
+
 @dataclasses.dataclass(frozen=True)
 class Parameter:
     """A model parameter with its uncertainty.
@@ -136,6 +151,9 @@ class Parameter:
     ci95 : (2,) tuple of float or None
         95 % interval (None: not known).
     unit : str
+        The parameter's own unit (:data:`PRINCIPLES`, :data:`MECHANISMS`; filled in where empty): the
+        value is read in it, so a model refuses another (a process mechanism's parameters take the
+        unit of their column, whatever it is).
     at_bound : bool
         The fit stopped at a bound of the parameter's range.
     """
@@ -243,6 +261,15 @@ class Member:
             raise GdfeError(f"member {self.model.name!r}: expected a single model, got one with members of its own")
 
 
+def _number_of(label):
+    """The finite number a group label reads as (``"2"``, ``"2.0"``), or None (``"B"``, ``"nan"``)."""
+    try:
+        x = float(label)
+    except ValueError:
+        return None
+    return x if math.isfinite(x) else None
+
+
 def _provenance_file(path):
     path = Path(path)
     return {"file": path.name, "sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
@@ -338,6 +365,8 @@ class DeformationModel:
             check_number(k, p.value)
             if not p.unit:
                 params[k] = dataclasses.replace(p, unit=units[k])
+            else:
+                _check_unit(k, p.unit, units[k])
         self._check_admissible(params)
         object.__setattr__(self, "params", {k: params[k] for k in needed})
         if self.name is None:
@@ -425,12 +454,32 @@ class DeformationModel:
                 z = np.clip(self.value("rate") * (x - self.value("x50")), -60.0, 60.0)
                 f *= 0.5 * (1.0 + math.tanh(0.5 * z))
             else:
-                g = str(v)
-                if g not in self.labels:
-                    raise GdfeError(f"process {col}: expected one of the groups the model was fitted to "
-                                    f"({', '.join(self.labels)}), got {g!r}")
+                g = self.group_of(col, v)
                 f *= 1.0 if g == self.labels[0] else self.value(f"scale[{g}]")
         return f
+
+    def group_of(self, column, value):
+        """The group label of ``batch`` that ``value`` (of process variable ``column``) names: the label
+        written the same, or, for a number, the one label that reads as the same number (``2`` and
+        ``2.0`` name the label ``"2"``, as the command line's ``--process lot=2`` gives a number).
+
+        Raises
+        ------
+        GdfeError
+            Naming ``column`` where ``value`` names no group, or more than one.
+        """
+        g = str(value)
+        if g in self.labels:
+            return g
+        if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_)):
+            same = [lab for lab in self.labels if _number_of(lab) == value]
+            if len(same) == 1:
+                return same[0]
+            if same:
+                raise GdfeError(f"process {column}: {g} names more than one group the model was fitted to "
+                                f"({', '.join(same)}); give the label as written in the model file")
+        raise GdfeError(f"process {column}: expected one of the groups the model was fitted to "
+                        f"({', '.join(self.labels)}), got {g!r}")
 
     def contraction(self, d, h, process=None):
         """Contraction ``c = 1 - R`` of a free face on a coat of thickness ``d`` [mm], film ``h`` [mm].
@@ -858,8 +907,9 @@ def load_model(path):
     """Read a deformation model file (TOML, :meth:`DeformationModel.save`).
 
     Every key and value is checked: an unknown key (with a "did you mean"), a wrong type, a
-    parameter a film cannot have, a missing file — each is a :class:`gdfe.GdfeError` naming
-    the file and the key. Files of format 1 (no predictive content) load as before.
+    parameter a film cannot have or in a unit other than its own, a top level that is not the
+    member of the same name in ``[ensemble]``, a missing file — each is a :class:`gdfe.GdfeError`
+    naming the file and the key. Files of format 1 (no predictive content) load as before.
     """
     try:
         import tomllib
@@ -880,6 +930,7 @@ def load_model(path):
         raise GdfeError(f"{name}: format {doc['format']} is newer than this gdfe reads ({MODEL_FORMAT})")
     members, weighting = _ensemble(name, doc.get("ensemble"))
     model = _model_of(name, doc, ensemble=members, weighting=weighting)
+    _check_nominal(name, model)
     for w in model.warnings:
         if w not in doc.get("warnings", []):
             log.warning("%s: %s", name, w)
@@ -913,6 +964,26 @@ def _ensemble(where, spec):
         except GdfeError as exc:
             raise GdfeError(f"{here}: {exc}") from None
     return tuple(out), weighting
+
+
+def _check_nominal(where, model):
+    """Refuse a file whose top level (the nominal model: its fold) is not the member of the same name (whose
+    draws give the intervals): a hand-edited value would put the intervals about another model."""
+    same = [(i, m.model) for i, m in enumerate(model.ensemble) if m.model.name == model.name]
+    if not same:
+        return
+    i, member = same[0]
+    here = f"ensemble.members[{i}] ({member.name!r})"
+    for key in ("principle", "mechanisms", "columns", "labels"):
+        if getattr(model, key) != getattr(member, key):
+            raise GdfeError(f"{where}: {key}: expected the same as {here}, the member the top level names, got "
+                            f"{getattr(model, key)!r} against its {getattr(member, key)!r}")
+    for k, p in model.params.items():
+        if not math.isclose(p.value, member.value(k), rel_tol=1e-9, abs_tol=1e-300):
+            raise GdfeError(f"{where}: parameters.{k}: expected {member.value(k):.10g}, the value of {here}, the "
+                            f"member the top level names, got {p.value:.10g}: the nominal fold would come from one "
+                            f"model and the intervals from another; give both the same value (or remove the "
+                            f"[ensemble] table to use the top level alone)")
 
 
 def _uncertainty_of(where, spec):

@@ -514,6 +514,7 @@ def draw_models(model, n, seed=0, noise=None):
     from gdfe._validation import check_int
 
     n = check_int("n", n, minimum=1)
+    seed = check_int("seed", seed, minimum=0)
     members = members_of(model, noise)
     w = np.array([m.weight for m in members])
     rng = np.random.default_rng(seed)

@@ -232,3 +232,13 @@ def test_a_process_column_reads_numbers_as_the_specimens_columns_do():
     assert spec.process(0, model) == {"T_C": 120.0}
     with pytest.raises(gdfe.GdfeError, match=r"row 3, column T_C: expected a number \(partial_activation\), got '1_20'"):
         spec.process(1, model)
+
+
+@pytest.mark.parametrize("argv, what", [(["data", "table1"], "file"), (["hinge", "-L", "1.0"], "folder")])
+def test_out_dash_is_refused_not_written_as_a_file_named_dash(tmp_path, monkeypatch, capsys, argv, what):
+    """``--json -`` is standard output; ``--out -`` wrote a file (or folder) named ``-``."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exc:
+        main([*argv, "--out", "-"])
+    assert exc.value.code == 2 and not (tmp_path / "-").exists()
+    assert f"--out: expected the name of a {what} to write, got '-'" in capsys.readouterr().err

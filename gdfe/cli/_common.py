@@ -76,7 +76,9 @@ def file_path(text):
 
 
 def new_file_path(text):
-    """An argument naming a file to write: not empty, not a folder."""
+    """An argument naming a file to write: not empty, not a folder, not ``-`` (which only ``--json`` reads as
+    standard output)."""
+    _not_standard_output(text, "file")
     path = file_path(text)
     if path.is_dir() or text.endswith(("/", os.sep)):
         raise argparse.ArgumentTypeError(f"expected the name of a file to write, got the folder {text!r}")
@@ -92,7 +94,14 @@ def new_toml_path(text):
     return path
 
 
+def _not_standard_output(text, what):
+    if text.strip() == "-":
+        raise argparse.ArgumentTypeError(f"expected the name of a {what} to write, got '-' (standard output is "
+                                         "only for --json)")
+
+
 def _out_path(text):
+    _not_standard_output(text, "folder")
     if not text.strip():
         raise argparse.ArgumentTypeError(f"expected the name of a folder, got {text!r}")
     return Path(text)
@@ -202,10 +211,14 @@ def _process(text):
         name, eq, value = item.partition("=")
         if not eq or not name.strip() or not value.strip():
             raise argparse.ArgumentTypeError(f"expected NAME=VALUE pairs separated by commas, got {item!r}")
+        name = name.strip()
+        if name in out:
+            raise argparse.ArgumentTypeError(f"expected each name once, got {name} more than once in {text!r}: which "
+                                             f"value the part was made at cannot be told")
         try:
-            out[name.strip()] = float(value)
+            out[name] = float(value)
         except ValueError:
-            out[name.strip()] = value.strip()
+            out[name] = value.strip()
     return out
 
 

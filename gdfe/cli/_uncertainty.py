@@ -20,13 +20,13 @@ def uncertainty_args(p):
                         "report intervals of the fold angles and measures, the per-vertex spread (VTU point field "
                         "spread_mm) and NAME_uncertainty.png")
     g.add_argument("--level", type=float, default=None, help=f"level of the intervals (default {LEVEL:g})")
-    g.add_argument("--seed", type=int, default=None, help="seed of the draws (default 0)")
+    g.add_argument("--seed", type=int, default=None, help="seed of the draws, an integer >= 0 (default 0)")
     scheduler_arg(p)
 
 
 def check_uncertainty(args, model, option="--model"):
     """``args.uncertainty`` checked against ``model`` (None where it is not asked for): a number of draws of at
-    least 2, a level in (0, 1), and a model with predictive content."""
+    least 2, a level in (0, 1), a seed of at least 0, and a model with predictive content."""
     from gdfe.ensemble import LEVEL, has_predictive_content
 
     if args.uncertainty is None:
@@ -37,6 +37,7 @@ def check_uncertainty(args, model, option="--model"):
     args.level = LEVEL if args.level is None else args.level
     args.seed = 0 if args.seed is None else args.seed
     n = check_int("--uncertainty", args.uncertainty, minimum=2)
+    check_int("--seed", args.seed, minimum=0)
     check_number("--level", args.level, minimum=0.0, maximum=1.0, include_minimum=False, include_maximum=False)
     if model is None:
         raise GdfeError(f"--uncertainty: expected {option} M.toml too, a model file with predictive content "

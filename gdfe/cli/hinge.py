@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import textwrap
 from pathlib import Path
 
 from gdfe import paper
@@ -146,8 +147,8 @@ def _record(args, design, res, K, model):
 
 
 def _text(args, design, res, out, model, ens):
-    """The command's text: the fold angle beside its reference (the model's closed form, or Eq. 1 and 2), the
-    solve, the contact check and, where asked, the uncertainty and the files written."""
+    """The command's text: the model (with its warnings), the fold angle beside its reference (the model's closed
+    form, or Eq. 1 and 2), the solve, the contact check and, where asked, the uncertainty and the files written."""
     alpha = out["fold_angle_rad"]
     lengthened = ""
     if "panel_lengthened_from_mm" in out:
@@ -155,8 +156,11 @@ def _text(args, design, res, out, model, ens):
                       f"{out['panel_reach_mm']:.3g} mm into them; the fold is measured on their outer "
                       f"{out['panel_lengthened_from_mm']:.3g} mm\n")
     d_text = f"d={args.d:g} mm" if args.d is not None else "R given (no d)"
+    # the model as gdfe simulate says it: its principle, mechanisms, data and warnings
+    described = textwrap.indent(model.text(), "  ") + "\n" if model is not None else ""
     return (f"hinge L={args.length:g} mm, {d_text}, h={args.h:g} mm, R={out['R']:.4f}, nz={args.nz}\n"
-            f"  GDFE fold angle  {shown(alpha, 4):.4f} rad ({shown(math.degrees(alpha), 1):.1f} deg)\n"
+            + described
+            + f"  GDFE fold angle  {shown(alpha, 4):.4f} rad ({shown(math.degrees(alpha), 1):.1f} deg)\n"
             + (f"  model {model.name}: closed form {out['fold_angle_model_rad']:.4f} rad (error {shown(out['error_rad'], 4):+.4f})\n"
                if model is not None else
                f"  Eq. 1            {out['fold_angle_eq1_rad']:.4f} rad (error {shown(out['error_rad'], 4):+.4f})\n"
