@@ -46,7 +46,7 @@ import numpy as np
 from gdfe._validation import GdfeError, check_file, check_positive, describe, is_finite_number, read_text
 from gdfe.resources import check_grid
 
-__all__ = ["CreasePattern", "FoldMasks", "read_fold", "fold_masks", "UNITS_MM", "ASSIGNMENTS"]
+__all__ = ["CreasePattern", "FoldMasks", "read_fold", "fold_masks", "crease_faces", "UNITS_MM", "ASSIGNMENTS"]
 
 log = logging.getLogger(__name__)
 
@@ -389,10 +389,15 @@ def _segments_meet(a, b, c, d, tol):
     return cross | touch
 
 
+def _areas(P):
+    """Signed (shoelace) areas of the closed polygons ``P`` (m, n, 2), positive anticlockwise."""
+    Q = np.roll(P, -1, axis=-2)
+    return 0.5 * np.sum(P[..., 0] * Q[..., 1] - Q[..., 0] * P[..., 1], axis=-1)
+
+
 def _area(P):
     """Signed (shoelace) area of the closed polygon ``P``, positive anticlockwise."""
-    Q = np.roll(P, -1, axis=0)
-    return 0.5 * float(np.sum(P[:, 0] * Q[:, 1] - Q[:, 0] * P[:, 1]))
+    return float(_areas(P[None])[0])
 
 
 def _inside(P, pts, tol):
@@ -413,6 +418,44 @@ def _inside(P, pts, tol):
     return odd & ~near
 
 
+def _blocks(m, cost, budget=1 << 22):
+    """Slices of ``range(m)`` of at most ``budget / cost`` entries (at least one): rows of ``cost`` numbers."""
+    step = max(1, budget // max(int(cost), 1))
+    return [slice(s, min(s + step, m)) for s in range(0, m, step)]
+
+
+def _simple_faults(f, P, tol):
+    """How the faces ``f`` (m, n) [vertex indices], at ``P`` (m, n, 2), fail to be simple polygons.
+
+    Returns
+    -------
+    twice : (m, n, n) bool array
+        ``[k, p, q]``: entries p and q < p are the same vertex.
+    close : (m, n, n) bool array
+        ``[k, p, q]``: entries p < q are different vertices within ``tol`` of each other.
+    back : (m, n) bool array
+        ``[k, p]``: the edges into and out of entry p double back over each other.
+    meet : (m, e) bool array
+        Per pair of non-adjacent edges (:func:`_edge_pairs`): they meet.
+    """
+    n = f.shape[1]
+    twice = np.tril(f[:, :, None] == f[:, None, :], -1)
+    close = np.triu(np.hypot(*(P[:, :, None, :] - P[:, None, :, :]).transpose(3, 0, 1, 2)) <= tol, 1)
+    prev, nxt = np.roll(P, 1, axis=1), np.roll(P, -1, axis=1)
+    u, w = prev - P, nxt - P
+    back = (np.abs(_cross(P, prev, nxt)) <= tol * np.hypot(u[..., 0], u[..., 1])) & (np.sum(u * w, axis=-1) > 0)
+    i, j = _edge_pairs(n)
+    meet = _segments_meet(P[:, i], nxt[:, i], P[:, j], nxt[:, j], tol)
+    return twice, close, back, meet
+
+
+def _edge_pairs(n):
+    """The pairs (i, j), i < j, of non-adjacent edges of a polygon of ``n`` vertices (edge i: vertex i to i + 1)."""
+    i, j = np.triu_indices(n, 2)
+    keep = ~((i == 0) & (j == n - 1))  # the last edge and the first are adjacent
+    return i[keep], j[keep]
+
+
 def _check_simple(name, k, f, P, tol):
     """Refuse face ``k`` (vertex indices ``f``, positions ``P``) unless a simple polygon.
 
@@ -420,66 +463,291 @@ def _check_simple(name, k, f, P, tol):
     and two non-adjacent edges do not meet (adjacent ones meet only at their shared vertex).
     """
     where = f"{name}: faces_vertices[{k}]: expected a simple polygon (edges meeting only at their shared corners)"
-    seen = {}
-    for i in f.tolist():
-        if i in seen:
-            raise GdfeError(f"{where}, got {f.tolist()}: it has vertex {i} twice")
-        seen[i] = True
+    twice, close, back, meet = (x[0] for x in _simple_faults(f[None], P[None], tol))
     n = len(f)
-    gap = np.hypot(*(P[:, None, :] - P[None, :, :]).transpose(2, 0, 1))
-    i, j = np.nonzero(np.triu(gap <= tol, 1))
-    if len(i):
-        raise GdfeError(f"{where}, got {f.tolist()}: its vertices {f[i[0]]} and {f[j[0]]} are both at "
-                        f"{describe(P[i[0]].tolist())}")
-    prev, nxt = np.roll(P, 1, axis=0), np.roll(P, -1, axis=0)
-    u, w = prev - P, nxt - P
-    back = (np.abs(_cross(P, prev, nxt)) <= tol * np.hypot(*u.T)) & (np.sum(u * w, axis=1) > 0)
+    if twice.any():
+        raise GdfeError(f"{where}, got {f.tolist()}: it has vertex {f[np.nonzero(twice)[0][0]]} twice")
+    if close.any():
+        i, j = (int(x[0]) for x in np.nonzero(close))
+        raise GdfeError(f"{where}, got {f.tolist()}: its vertices {f[i]} and {f[j]} are both at "
+                        f"{describe(P[i].tolist())}")
     if back.any():
         m = int(np.argmax(back))
         raise GdfeError(f"{where}, got {f.tolist()}: its edges {f[m - 1]}-{f[m]} and {f[m]}-{f[(m + 1) % n]} "
                         f"double back over each other")
-    i, j = np.triu_indices(n, 2)
-    keep = ~((i == 0) & (j == n - 1))  # the last edge and the first are adjacent
-    i, j = i[keep], j[keep]
-    meet = _segments_meet(P[i], nxt[i], P[j], nxt[j], tol)
     if meet.any():
-        m = int(np.argmax(meet))
-        a, b = int(i[m]), int(j[m])
+        i, j = _edge_pairs(n)
+        a, b = int(i[np.argmax(meet)]), int(j[np.argmax(meet)])
         raise GdfeError(f"{where}, got {f.tolist()}: its edge {f[a]}-{f[(a + 1) % n]} crosses its edge "
                         f"{f[b]}-{f[(b + 1) % n]}")
 
 
-def _interior_point(P, tol):
-    """A point strictly inside the simple polygon ``P`` (O'Rourke's: by its lowest-leftmost, convex, vertex)."""
-    n = len(P)
-    v = int(np.lexsort((P[:, 1], P[:, 0]))[0])
-    a, c, b = P[v - 1], P[v], P[(v + 1) % n]
-    if n == 3:
-        return (a + b + c) / 3.0
-    rest = np.delete(P, [(v - 1) % n, v, (v + 1) % n], axis=0)
-    s = np.sign(_cross(a, c, b))  # the triangle a, v, b's orientation
-    ab = np.hypot(*(b - a))
-    off = -s * _cross(a, b, rest) / ab  # distance from the line a-b, on v's side (positive)
-    inside = (s * _cross(a, c, rest) >= -tol * ab) & (s * _cross(c, b, rest) >= -tol * ab) & (off > tol)
-    if not inside.any():
-        return (a + b + c) / 3.0
-    q = rest[inside][np.argmax(off[inside])]
-    return (c + q) / 2.0
+def _face_groups(faces, V):
+    """The faces grouped by their number of vertices: a list of (rows, f, P), ``rows`` the faces'
+    indices, ``f`` (m, n) their vertex indices and ``P`` (m, n, 2) their positions."""
+    sizes = np.array([len(f) for f in faces])
+    flat = np.concatenate(faces)
+    start = np.cumsum(sizes) - sizes
+    groups = []
+    for n in np.unique(sizes).tolist():
+        rows = np.nonzero(sizes == n)[0]
+        f = flat[start[rows][:, None] + np.arange(n)]
+        groups.append((rows, f, V[f]))
+    return groups
+
+
+def _check_simple_faces(name, faces, V, groups, tol):
+    """Refuse the first face (in file order) that is not a simple polygon, as :func:`_check_simple` does;
+    the faces are tested together, those of each number of vertices (``groups``, :func:`_face_groups`) as one."""
+    bad = [np.zeros(0, int)]
+    for rows, f, P in groups:
+        n = f.shape[1]
+        for s in _blocks(len(rows), 16 * n * n):
+            faults = _simple_faults(f[s], P[s], tol)
+            bad.append(rows[s][np.any([x.reshape(len(x), -1).any(axis=1) for x in faults], axis=0)])
+    for k in np.sort(np.concatenate(bad)).tolist():
+        _check_simple(name, k, faces[k], V[faces[k]], tol)
 
 
 def _convex(P, tol):
-    """Whether the simple polygon ``P`` is convex (vertices on a straight edge allowed)."""
-    turn = _cross(np.roll(P, 1, axis=0), P, np.roll(P, -1, axis=0)) * np.sign(_area(P))
-    return bool(np.all(turn >= -tol * np.hypot(*(P - np.roll(P, 1, axis=0)).T)))
+    """Which of the simple polygons ``P`` (m, n, 2) are convex (vertices on a straight edge allowed)."""
+    prev = np.roll(P, 1, axis=1)
+    turn = _cross(prev, P, np.roll(P, -1, axis=1)) * np.sign(_areas(P))[:, None]
+    return np.all(turn >= -tol * np.hypot(*(P - prev).transpose(2, 0, 1)), axis=1)
 
 
 def _overlap_convex(A, B, tol):
-    """Whether two convex polygons' insides overlap: no edge normal separates them (by more than -tol)."""
-    d = np.vstack([np.roll(A, -1, axis=0) - A, np.roll(B, -1, axis=0) - B])
-    axes = np.column_stack([-d[:, 1], d[:, 0]]) / np.hypot(*d.T)[:, None]
-    pa, pb = A @ axes.T, B @ axes.T
-    gap = np.minimum(pa.max(0), pb.max(0)) - np.maximum(pa.min(0), pb.min(0))
-    return bool(np.all(gap > tol))
+    """Which pairs of convex polygons ``A`` (m, na, 2) and ``B`` (m, nb, 2) overlap inside (separating axes).
+
+    Two convex polygons' insides are apart where the projections on the normal of one of
+    their edges overlap by ``tol`` or less (touching along an edge or at a corner: apart).
+    """
+    d = np.concatenate([np.roll(A, -1, axis=1) - A, np.roll(B, -1, axis=1) - B], axis=1)
+    axes = np.stack([-d[..., 1], d[..., 0]], axis=-1) / np.hypot(d[..., 0], d[..., 1])[..., None]
+    pa = A[:, :, None, 0] * axes[:, None, :, 0] + A[:, :, None, 1] * axes[:, None, :, 1]
+    pb = B[:, :, None, 0] * axes[:, None, :, 0] + B[:, :, None, 1] * axes[:, None, :, 1]
+    gap = np.minimum(pa.max(axis=1), pb.max(axis=1)) - np.maximum(pa.min(axis=1), pb.min(axis=1))
+    return np.all(gap > tol, axis=1)
+
+
+def _triangles(P, tol):
+    """Triangles tiling the simple polygons ``P`` (m, n, 2), by ear clipping (all the polygons at once).
+
+    Each polygon is walked anticlockwise, and loses one vertex a step: a vertex within ``tol``
+    of the line through its two neighbours lies on a straight edge, and is dropped without a
+    triangle; otherwise an ear (:func:`_ears`) is cut off as a triangle. The three vertices
+    left make the last triangle.
+
+    Returns
+    -------
+    triangles : (t, 3, 2) float array
+        Anticlockwise.
+    owner : (t,) int array
+        The polygon (row of ``P``) of each.
+    """
+    m = len(P)
+    Q = np.where((_areas(P) > 0)[:, None, None], P, P[:, ::-1])
+    rows = np.arange(m)
+    out, owner = [np.zeros((0, 3, 2))], [np.zeros(0, int)]
+    while True:
+        prev, nxt = np.roll(Q, 1, axis=1), np.roll(Q, -1, axis=1)
+        base = np.hypot(*(nxt - prev).transpose(2, 0, 1))
+        turn = _cross(prev, Q, nxt)
+        if Q.shape[1] == 3:
+            keep = turn[:, 1] > tol * base[:, 1]  # not three points on a line
+            out.append(Q[keep])
+            owner.append(rows[keep])
+            break
+        straight = np.abs(turn) <= tol * base
+        v = np.where(straight.any(axis=1), np.argmax(straight, axis=1), _ears(Q, turn, base, tol))
+        cut = ~straight[rows, v]
+        out.append(np.stack([prev[rows, v], Q[rows, v], nxt[rows, v]], axis=1)[cut])
+        owner.append(rows[cut])
+        keep = np.ones(Q.shape[:2], bool)
+        keep[rows, v] = False
+        Q = Q[keep].reshape(m, -1, 2)
+    return np.concatenate(out), np.concatenate(owner)
+
+
+def _ears(Q, turn, base, tol, block=16):
+    """An ear of each anticlockwise simple polygon ``Q`` (m, n, 2): the first vertex turning left (by
+    more than ``tol``) whose triangle with its two neighbours holds no other vertex, nor has one within
+    ``tol`` of it; ``block`` candidates of each polygon are tried at a time.
+
+    Where round-off leaves none, the first whose triangle holds no vertex by more than ``tol``;
+    where none either, the vertex turning left the most.
+    """
+    m, n = turn.shape
+    convex = turn > tol * base
+    order = np.argsort(~convex, axis=1, kind="stable")  # the vertices turning left first, in order
+    found = np.full(m, -1)
+    for margin in (-tol, tol):
+        for s in range(0, n, block):
+            todo = np.nonzero(found < 0)[0]
+            c = order[todo, s:s + block]
+            valid = convex[todo[:, None], c]
+            if not valid.any():
+                break
+            corners = [Q[todo[:, None], (c + off) % n] for off in (-1, 0, 1)]
+            held = np.ones(c.shape + (n,), bool)
+            for a, b in zip(corners, corners[1:] + corners[:1]):  # distance left of each side, over margin
+                held &= _cross(a[:, :, None], b[:, :, None], Q[todo, None]) > \
+                    margin * np.hypot(*(b - a).transpose(2, 0, 1))[..., None]
+            for off in (-1, 0, 1):
+                np.put_along_axis(held, ((c + off) % n)[..., None], False, axis=2)
+            ear = valid & ~held.any(axis=2)
+            has = ear.any(axis=1)
+            found[todo[has]] = c[has, np.argmax(ear[has], axis=1)]
+    return np.where(found >= 0, found, np.argmax(turn, axis=1))
+
+
+def _box_pairs(lo, hi, tol, budget=1 << 20):
+    """The pairs ``(i, j)``, i < j, of the boxes ``[lo, hi]`` (f, 2) that overlap by more than ``tol`` on both axes.
+
+    Sort and sweep, in strips: the plane is cut into strips along y (:func:`_strips`), each box
+    put in every strip it reaches; in each strip the boxes are sorted by their lower x, and the
+    candidates of each are the boxes after it that start before it ends along x (found by
+    bisection). A pair is kept in one strip only, that of the higher of the two boxes' lower
+    y, and where the boxes overlap by more than ``tol`` along x and along y. Done a block of
+    about ``budget`` candidates at a time.
+
+    Returns
+    -------
+    i, j : (p,) int arrays
+    """
+    f = len(lo)
+    first_strip, box, strip = _strips(lo[:, 1], hi[:, 1])
+    by_x = np.argsort(lo[:, 0], kind="stable")
+    rank = np.empty(f, int)
+    rank[by_x] = np.arange(f)
+    reach = np.searchsorted(lo[by_x, 0], hi[:, 0], side="right")  # the ranks of the boxes starting by its end
+    key = strip * (f + 1) + rank[box]  # the entries by strip, then by lower x
+    order = np.argsort(key)
+    box, strip = box[order], strip[order]
+    count = np.searchsorted(key[order], strip * (f + 1) + reach[box]) - np.arange(len(box)) - 1
+    count = np.maximum(count, 0)
+    end = np.cumsum(count)
+    first = end - count  # where each entry's candidates start in the list of all of them
+    pairs = [np.zeros((2, 0), int)]
+    p = 0
+    while p < len(box):
+        q = max(p + 1, int(np.searchsorted(end, first[p] + budget, side="right")))
+        a = np.repeat(np.arange(p, q), count[p:q])
+        b = a + 1 + np.arange(len(a)) - (first[a] - first[p])
+        i, j = box[a], box[b]
+        keep = np.all(np.minimum(hi[i], hi[j]) - np.maximum(lo[i], lo[j]) > tol, axis=1)
+        keep &= strip[a] == np.maximum(first_strip[i], first_strip[j])
+        pairs.append(np.sort([i[keep], j[keep]], axis=0))
+        p = q
+    i, j = np.concatenate(pairs, axis=1)
+    return i, j
+
+
+def _strips(lo, hi):
+    """Strips for :func:`_box_pairs`: the intervals ``[lo, hi]`` (f,) cut at multiples of a height,
+    twice the median interval's (doubled while the intervals would reach more than 4 f strips in all).
+
+    Returns
+    -------
+    first : (f,) int array
+        The strip each interval starts in.
+    box, strip : (e,) int arrays
+        Every interval (``box``) in every strip it reaches, in order.
+    """
+    f = len(lo)
+    h = max(2.0 * float(np.median(hi - lo)), float(hi.max() - lo.min()) / f, np.finfo(float).tiny)
+    while True:
+        first = np.floor((lo - lo.min()) / h).astype(int)
+        span = np.floor((hi - lo.min()) / h).astype(int) - first + 1
+        if span.sum() <= 4 * f:
+            break
+        h *= 2.0
+    box = np.repeat(np.arange(f), span)
+    strip = first[box] + np.arange(len(box)) - (np.cumsum(span) - span)[box]
+    return first, box, strip
+
+
+def _pieces(groups, convex, needed, tol):
+    """Convex pieces of the ``needed`` faces: a convex face whole, any other in triangles (:func:`_triangles`).
+
+    Returns
+    -------
+    owner : (p,) int array
+        Face of each piece, in increasing order.
+    size, row : (p,) int arrays
+        Its number of vertices, and its row in ``stacks[size]``.
+    lo, hi : (p, 2) float arrays
+        Its bounding box.
+    stacks : dict of int -> (m, size, 2) float array
+    """
+    owners, stacks = {}, {}
+    for rows, f, P in groups:
+        take = convex[rows] & needed[rows]
+        owners.setdefault(f.shape[1], []).append(rows[take])
+        stacks.setdefault(f.shape[1], []).append(P[take])
+        cut = np.nonzero(~convex[rows] & needed[rows])[0]
+        for s in _blocks(len(cut), 64 * f.shape[1]):
+            T, r = _triangles(P[cut[s]], tol)
+            owners.setdefault(3, []).append(rows[cut[s]][r])
+            stacks.setdefault(3, []).append(T)
+    stacks = {n: np.concatenate(s) for n, s in stacks.items()}
+    owner = np.concatenate([np.concatenate(owners[n]) for n in stacks])
+    size = np.concatenate([np.full(len(stacks[n]), n) for n in stacks])
+    row = np.concatenate([np.arange(len(stacks[n])) for n in stacks])
+    lo = np.concatenate([stacks[n].min(axis=1) for n in stacks])
+    hi = np.concatenate([stacks[n].max(axis=1) for n in stacks])
+    order = np.argsort(owner, kind="stable")
+    return owner[order], size[order], row[order], lo[order], hi[order], stacks
+
+
+def _faces_overlap(groups, convex, i, j, tol):
+    """Which pairs of faces ``(i, j)`` overlap inside: any of their convex pieces (:func:`_pieces`) do
+    (tested where the pieces' bounding boxes overlap by more than ``tol``)."""
+    if not len(i):
+        return np.zeros(0, bool)
+    needed = np.zeros(len(convex), bool)
+    needed[i] = needed[j] = True
+    owner, size, row, lo, hi, stacks = _pieces(groups, convex, needed, tol)
+    count = np.bincount(owner, minlength=len(convex))
+    start = np.cumsum(count) - count
+    n = count[i] * count[j]  # piece pairs per face pair
+    pair = np.repeat(np.arange(len(i)), n)
+    k = np.arange(len(pair)) - (np.cumsum(n) - n)[pair]
+    a = start[i][pair] + k // count[j][pair]
+    b = start[j][pair] + k % count[j][pair]
+    near = np.all(np.minimum(hi[a], hi[b]) - np.maximum(lo[a], lo[b]) > tol, axis=1)  # their boxes overlap
+    pair, a, b = pair[near], a[near], b[near]
+    hit = np.zeros(len(pair), bool)
+    kind = size[a] * (int(size.max(initial=0)) + 1) + size[b]
+    for key in np.unique(kind).tolist():
+        sel = np.nonzero(kind == key)[0]
+        na, nb = size[a[sel[0]]], size[b[sel[0]]]
+        for s in _blocks(len(sel), (na + nb) * max(na, nb) * 4):
+            t = sel[s]
+            hit[t] = _overlap_convex(stacks[na][row[a[t]]], stacks[nb][row[b[t]]], tol)
+    overlap = np.zeros(len(i), bool)
+    overlap[pair[hit]] = True
+    return overlap
+
+
+def _check_tiling(cp, V, areas, tol, span):
+    """Refuse faces whose areas do not add up to the area the boundary (B) edges' loops enclose."""
+    name = cp.name
+    try:
+        loops = [V[p] for p in _boundary_loops(cp)]
+    except GdfeError as exc:
+        log.info("%s: faces not checked against the boundary: %s", name, exc)
+        return
+    enclosed = 0.0
+    for i, L in enumerate(loops):
+        depth = sum(bool(_inside(M, L, tol).any()) for j, M in enumerate(loops) if j != i)
+        enclosed += (-1.0) ** depth * abs(_area(L))  # a loop inside an odd number of loops: a hole
+    total = float(areas.sum())
+    if abs(total - enclosed) > 1e-6 * max(total, enclosed) + 1e-9 * span ** 2:
+        how = "overlap (or reach outside the outline)" if total > enclosed else "leave out part of the outline"
+        raise GdfeError(f"{name}: faces_vertices: the faces' areas add up to {total:.6g} mm2 but the "
+                        f"boundary (B) edges enclose {enclosed:.6g} mm2; expected faces that tile the "
+                        f"outline, got faces that {how}")
 
 
 def _check_faces(cp):
@@ -487,57 +755,63 @@ def _check_faces(cp):
 
     Each face must be a simple polygon (:func:`_check_simple`). Where the file has boundary
     (``B``) edges in closed loops, the faces' areas must add up to the area the loops enclose
-    (a loop inside another one is a hole). Then every two faces are checked for overlap:
-    exactly for two convex faces (separating axes); where either is not convex, only whether
-    a point inside one lies inside the other (a face holding another, or the same face twice).
+    (a loop inside another one is a hole). Then no two faces may overlap inside, exactly for
+    any simple polygons: the pairs whose bounding boxes overlap (:func:`_box_pairs`) are
+    tested piece by piece, a convex face whole and any other in triangles, by separating axes
+    (:func:`_overlap_convex`). Faces that share an edge or a corner, or touch along an edge,
+    do not overlap; round-off is allowed for by a tolerance of 1e-9 of the pattern's size.
+    The faces are checked together, those of each number of vertices as one array.
     """
     name = cp.name
     V = cp.vertices - cp.vertices.min(0)  # round-off as of the pattern's size, not its position
     span = float(max(np.ptp(cp.vertices, axis=0).max(), np.finfo(float).tiny))
     tol = 1e-9 * span
-    polys = [V[f] for f in cp.faces]
-    for k, (f, P) in enumerate(zip(cp.faces, polys)):
-        _check_simple(name, k, f, P, tol)
-    areas = np.array([abs(_area(P)) for P in polys])
+    groups = _face_groups(cp.faces, V)
+    _check_simple_faces(name, cp.faces, V, groups, tol)
+    areas, convex = np.zeros(len(cp.faces)), np.zeros(len(cp.faces), bool)
+    lo, hi = np.zeros((len(cp.faces), 2)), np.zeros((len(cp.faces), 2))
+    for rows, f, P in groups:
+        areas[rows], convex[rows] = np.abs(_areas(P)), _convex(P, tol)
+        lo[rows], hi[rows] = P.min(axis=1), P.max(axis=1)
     if (cp.assignment == "B").any():
-        try:
-            loops = [V[p] for p in _boundary_loops(cp)]
-        except GdfeError as exc:
-            loops = None
-            log.info("%s: faces not checked against the boundary: %s", name, exc)
-        if loops is not None:
-            enclosed = 0.0
-            for i, L in enumerate(loops):
-                depth = sum(bool(_inside(M, L, tol).any()) for j, M in enumerate(loops) if j != i)
-                enclosed += (-1.0) ** depth * abs(_area(L))  # a loop inside an odd number of loops: a hole
-            total = float(areas.sum())
-            if abs(total - enclosed) > 1e-6 * max(total, enclosed) + 1e-9 * span ** 2:
-                how = ("overlap (or reach outside the outline)" if total > enclosed
-                       else "leave out part of the outline")
-                raise GdfeError(f"{name}: faces_vertices: the faces' areas add up to {total:.6g} mm2 but the "
-                                f"boundary (B) edges enclose {enclosed:.6g} mm2; expected faces that tile the "
-                                f"outline, got faces that {how}")
-    # pairwise: exact for convex faces; a non-convex face overlapping another without holding a
-    # point of its inside, or the other holding one of its own (partly overlapping L shapes), is not
-    # caught here (where there are B edges the areas above catch it unless a gap makes up for it)
-    lo = np.array([P.min(0) for P in polys])
-    hi = np.array([P.max(0) for P in polys])
-    convex = [_convex(P, tol) for P in polys]
-    inner = [None] * len(polys)
-    for j in range(1, len(polys)):
-        near = np.all((np.minimum(hi[:j], hi[j]) - np.maximum(lo[:j], lo[j])) > tol, axis=1)
-        for i in np.nonzero(near)[0]:
-            if convex[i] and convex[j]:
-                overlap = _overlap_convex(polys[i], polys[j], tol)
-            else:
-                for m in (i, j):
-                    if inner[m] is None:
-                        inner[m] = _interior_point(polys[m], tol)
-                overlap = bool(_inside(polys[i], inner[j][None], tol)[0] or _inside(polys[j], inner[i][None], tol)[0])
-            if overlap:
-                raise GdfeError(f"{name}: faces_vertices[{j}]: overlaps faces_vertices[{i}] (expected faces that "
-                                f"meet only along their edges, got {cp.faces[j].tolist()} and "
-                                f"{cp.faces[i].tolist()})")
+        _check_tiling(cp, V, areas, tol, span)
+    # pairwise, exact for simple polygons: a face not convex is cut into triangles, and two faces
+    # overlap where a piece of one and a piece of the other do (where there are B edges the areas
+    # above already catch most overlaps, but not those a gap elsewhere makes up for)
+    i, j = _box_pairs(lo, hi, tol)
+    overlap = _faces_overlap(groups, convex, i, j, tol)
+    if overlap.any():
+        first = np.lexsort((i[overlap], j[overlap]))[0]
+        i, j = int(i[overlap][first]), int(j[overlap][first])
+        raise GdfeError(f"{name}: faces_vertices[{j}]: overlaps faces_vertices[{i}] (expected faces that "
+                        f"meet only along their edges, got {cp.faces[j].tolist()} and {cp.faces[i].tolist()})")
+    _check_creases_bound_faces(cp, V, tol)
+
+
+def crease_faces(cp):
+    """The faces each crease joins: ``{edge: [face, ...]}`` over :attr:`CreasePattern.creases`, the faces whose
+    boundary has the crease as one of its sides (its two vertices next to each other)."""
+    sides = {}
+    for k, f in enumerate(cp.faces or []):
+        for a, b in zip(f.tolist(), np.roll(f, -1).tolist()):
+            sides.setdefault((min(a, b), max(a, b)), []).append(k)
+    return {int(e): sides.get(tuple(sorted(cp.edges[e].tolist())), []) for e in cp.creases}
+
+
+def _check_creases_bound_faces(cp, V, tol):
+    """Warn of a crease that runs through a face (joins two of its corners that are not neighbours, inside it):
+    its hinge is printed and folds, but the faces on its sides are not in the file, so its fold is not
+    measured (:func:`gdfe.fabrication.crease_angles` joins a crease's two faces)."""
+    joined = crease_faces(cp)
+    for e, faces in joined.items():
+        ends = set(cp.edges[e].tolist())
+        for k, f in enumerate(cp.faces):
+            if k in faces or not ends <= set(f.tolist()):
+                continue
+            if _inside(V[f], V[cp.edges[e]].mean(axis=0)[None], tol)[0]:
+                log.warning("%s: edges_vertices[%d] (%s) runs through faces_vertices[%d] from corner to corner: "
+                            "its hinge is printed, but its fold is not measured (split the face along the crease "
+                            "to measure it)", cp.name, e, cp.assignment[e], k)
 
 
 #: Bytes per pixel of :func:`fold_masks`: the film, face and hinge masks, the pixels' centres, the
@@ -593,6 +867,7 @@ def fold_masks(cp, pixel, R, h, hinge_width=None):
     unassigned = int((cp.assignment == "U").sum())
     if unassigned:
         log.warning("%s: %d unassigned (U) edges are left flat", cp.name, unassigned)
+    joined = crease_faces(cp)
     for e in cp.creases:
         if not math.isnan(cp.width[e]):
             w, src = float(cp.width[e]), "edges_gdfe:width"
@@ -612,8 +887,7 @@ def fold_masks(cp, pixel, R, h, hinge_width=None):
         take = inside & (dist < best)
         best[take] = dist[take]
         owner[take] = e
-        ends = set(cp.edges[e].tolist())
-        adjacent = [k for k, f in enumerate(cp.faces or []) if ends <= set(f.tolist())]
+        adjacent = joined[int(e)]
         hinges.append({"edge": int(e), "assignment": str(cp.assignment[e]), "coated": cp.coated[e],
                        "width_mm": w, "width_from": src, "length_mm": L, "faces": adjacent,
                        "angle_rad": (1.0 if cp.coated[e] == "bottom" else -1.0) * (1.0 - R) * w / h})
