@@ -26,6 +26,7 @@ from gdfe.calibration import DEFAULT_H, PAPER_K
 from gdfe.material import LAYOUT_CHARS, Material
 from gdfe.mesh import DEFAULT_NZ, HexMesh, sheet_mesh
 from gdfe.model import as_model, paper_model
+from gdfe.physical_ranges import MAX_CONTRACTION, MICROMETRE_HINT, RANGES, check_contraction
 from gdfe.resources import check_design_cells
 
 log = logging.getLogger(__name__)
@@ -243,8 +244,55 @@ def grid_design(material2d, R=None, h=DEFAULT_H, pixel=0.1, nz=DEFAULT_NZ, isotr
     GdfeError
         Among others, cells too long for their fold (:func:`check_resolution`).
     """
-    return _warn_unused_process(_warn_aspect(check_resolution(_grid_design(
-        material2d, R, h, pixel, nz, isotropy, film, regions2d, meta, d, model, process))))
+    return _warn_unused_process(_warn_aspect(check_resolution(_warn_film(_grid_design(
+        material2d, R, h, pixel, nz, isotropy, film, regions2d, meta, d, model, process)))))
+
+
+def _warn_film(design):
+    """Warn of a film or coat thickness outside its physical range, and of a contraction beyond the
+    film's free shrink (:mod:`gdfe.physical_ranges`): one warning each per design, not per cell.
+
+    The design is built as asked: a thickness in micrometres where mm are meant, or a coat that asks
+    more shrink of the film than it has, is most likely a mistake of the input, but one the simulation
+    can run, so it is said, not refused.
+
+    Parameters
+    ----------
+    design : Design
+
+    Returns
+    -------
+    Design
+        ``design`` itself.
+    """
+    known = design.d[np.isfinite(design.d)] if design.d is not None else np.empty(0)
+    for name, what, values in (("h", "the film's thickness", np.array([design.h])),
+                               ("d", "the coat's thickness", known)):
+        note = _thickness_note(name, what, values)
+        if note:
+            log.warning("%s", note)
+    top, bottom = design.face_contraction()
+    found = check_contraction(np.concatenate([top, bottom, [0.0]]))
+    if found is not None:
+        c = found["value"]
+        log.warning("the film's free face contracts by 1 - R = %.3g (R = %.3g), more than the film's free shrink of "
+                    "at most %g allows (pre-strained polystyrene shrinks in-plane by at most 50-60 %%): the fold "
+                    "is an extrapolation; check R, or d (a thinner coat contracts more)", c, 1.0 - c, MAX_CONTRACTION)
+    return design
+
+
+def _thickness_note(name, what, values):
+    """The warning on thicknesses ``values`` [mm] of ``name`` outside their range, or None."""
+    r = RANGES[name]
+    out = np.unique(values[(values < r.lo) | (values > r.hi)])
+    if not out.size:
+        return None
+    given = f"{out[0]:g} mm" if out.size == 1 else f"{out[0]:g} to {out[-1]:g} mm"
+    note = f"{what}: {name} = {given} is outside the physical range [{r.lo:g}, {r.hi:g}] mm ({r.why})"
+    big = out[-1]
+    if big > MICROMETRE_HINT and r.contains(big / 1000.0):
+        note += f"; lengths are in mm: {big:g} looks like micrometres, {name} = {big / 1000.0:g} mm"
+    return note
 
 
 def _warn_aspect(design):
@@ -368,10 +416,72 @@ def _grid_design(material2d, R, h, pixel, nz, isotropy, film, regions2d, meta, d
         design = Design(mesh=mesh, material=material2d[i, j], R=1.0, h=h, isotropy=isotropy,
                         regions=regions, meta=meta, d=d_cells)
         model = model or paper_model()
+        _check_coat(model, design, process)
         return _record_process(model.apply(design, process), model, process)
     R2 = np.broadcast_to(np.asarray(R, float), material2d.shape)
     return _record_process(Design(mesh=mesh, material=material2d[i, j], R=R2[i, j], h=h, isotropy=isotropy,
                                   regions=regions, meta=meta, d=d_cells), None, process)
+
+
+def _check_coat(model, design, process=None):
+    """Refuse a coat on which ``model`` gives a contraction ratio below ``R_MIN`` (the film would
+    all but vanish), naming the thinnest coat that gives at least ``R_MIN``.
+
+    Parameters
+    ----------
+    model : DeformationModel
+    design : Design
+        Its cells coated on one face carry the coat thickness ``design.d``.
+    process : dict, optional
+        The part's process variables, for the model's process mechanisms.
+
+    Raises
+    ------
+    GdfeError
+        Naming ``d``, the ratio it gives and the thinnest coat that passes.
+    """
+    mat = design.material
+    one_side = (mat == Material.CONTRACT_TOP) | (mat == Material.CONTRACT_BOTTOM)
+    if design.d is None:
+        return
+    for d in np.unique(design.d[one_side & np.isfinite(design.d)]):  # thinnest first
+        try:
+            R = 1.0 - float(model.contraction(d, design.h, process))
+        except GdfeError as exc:  # R <= 0: the model says which R, and needs a thicker coat still
+            if d > model.d_min(design.h, process):
+                raise
+            said = str(exc).split("; a contraction ratio")[0]
+        else:
+            if R >= R_MIN:
+                continue
+            said = (f"d={d:g} mm gives R={R:.4g} by model {model.name!r} ({model.describe_principle()}, "
+                    f"h={design.h:g} mm)")
+        thinnest = _thinnest_coat(model, design.h, process)
+        need = (f"which needs d >= {thinnest:g} mm" if thinnest is not None else
+                "which no passive thickness up to 1 m gives with these parameters")
+        raise GdfeError(f"{said}; a contraction ratio must lie in [{R_MIN:g}, 1], {need}")
+
+
+def _thinnest_coat(model, h, process):
+    """The thinnest coat [mm] on which ``model`` gives a contraction ratio of at least ``R_MIN``,
+    rounded up to 4 significant digits (a coat of the number said passes); None where none does."""
+    from scipy.optimize import brentq
+
+    def short(log_d):  # > 0 where the coat is too thin
+        try:
+            return R_MIN - (1.0 - float(model.contraction(math.exp(log_d), h, process)))
+        except GdfeError:  # R <= 0
+            return 1.0
+
+    d0 = model.d_min(h, process)  # R = 0 there
+    if not math.isfinite(d0):
+        return None
+    lo, hi = math.log(max(d0, LENGTH_RANGE[0])), math.log(1e3)
+    if not short(lo) > 0 >= short(hi):
+        return None
+    d = math.exp(brentq(short, lo, hi, xtol=1e-12))
+    scale = 10.0 ** (3 - math.floor(math.log10(d)))
+    return math.ceil(d * scale) / scale
 
 
 #: What each kind of design calls its film, for the message of a film in pieces.
@@ -513,7 +623,7 @@ def hinge(length, d=None, h=DEFAULT_H, K=PAPER_K, R=None, width=0.5, panel_lengt
         des.meta["panel_lengthened_from_mm"] = npanel * dx
         des.meta["panel_reach_mm"] = reached * dx
         npanel = longer
-    _warn_unused_process(_warn_aspect(check_resolution(des, "cell_size")))
+    _warn_unused_process(_warn_aspect(check_resolution(_warn_film(des), "cell_size")))
     # x = 0 at the start of the hinge
     des.mesh.points[:, 0] -= npanel * dx
     return des

@@ -11,6 +11,10 @@ fit to data:
   cure depth misses the printed thickness by tens of micrometres;
 * fold angles read with a protractor or from a photograph.
 
+The film's and the coat's thicknesses ``h`` and ``d`` have ranges too, and so has the
+contraction ``1 - R`` of a free face (at most :data:`MAX_CONTRACTION`): a design built outside
+them is warned of (:mod:`gdfe.design`), as a length in micrometres where one in mm is meant.
+
 A fitted parameter outside its range is *implausible*: the fit used it to absorb something
 else (another effect, a measurement artefact, a misread column), so the model may describe
 these tests but is not a cause, and it should not be carried to other designs.
@@ -25,7 +29,7 @@ import math
 
 import numpy as np
 
-__all__ = ["Range", "RANGES", "MAX_CONTRACTION", "range_of", "check", "check_contraction"]
+__all__ = ["Range", "RANGES", "MAX_CONTRACTION", "MICROMETRE_HINT", "range_of", "check", "check_contraction"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -56,6 +60,10 @@ class Range:
 
 #: The free in-plane shrink of pre-strained polystyrene: no face of the film contracts more.
 MAX_CONTRACTION = 0.6
+
+#: A thickness [mm] above its range and above this, that lies inside the range read as micrometres,
+#: looks like micrometres (290 for a film of 0.29 mm).
+MICROMETRE_HINT = 10.0
 
 #: Parameter name -> :class:`Range`. ``scale[g]`` (one per group of a ``batch`` effect) is
 #: listed as ``"scale"``; see :func:`range_of`.
@@ -96,6 +104,12 @@ RANGES = {
     "contraction": Range(0.0, MAX_CONTRACTION, "",
                          "the contraction 1 - R of the film's free face that a model gives on a test: pre-strained "
                          "polystyrene shrinks in-plane by at most 50-60 %, so no test contracts more"),
+    "h": Range(0.02, 2.0, "mm",
+               "pre-strained polystyrene shrink films are about 0.1-0.5 mm thick; a sheet several times thinner "
+               "does not hold a fold, one several times thicker is a plate, not a film"),
+    "d": Range(0.01, 5.0, "mm",
+               "a DLP-printed coat is about 0.05-1 mm thick, printed in layers of 25-100 um; a coat thinner than "
+               "a layer is not printed, one several times the thickest folds nothing"),
 }
 
 

@@ -11,6 +11,12 @@ least-squares slope, and the fit is a one-dimensional search over ``log n``:
 3. the residual sum of squares, minimised over ``eps*`` in closed form, is minimised over ``log n``
    within the grid.
 
+``eps*`` is bounded below by :data:`EIGENSTRAIN_FLOOR` (a film that contracts by 100 % vanishes): a
+fit that stops there is flagged ``at_bound``, as one at the edge of the grid of ratios. A fit outside
+the film's free shrink ``[-MAX_CONTRACTION, 0]`` (:mod:`gdfe.physical_ranges`), at the bound or not,
+is warned of: the tests ask for a contraction that no film has (lengths in micrometres rather than
+mm, a misread column).
+
 Leave-one-out: each test is predicted by the parameters fitted to the other tests; the
 leave-one-out RMSE is the root-mean-square of those prediction errors.
 
@@ -27,6 +33,7 @@ import numpy as np
 
 from gdfe import _validation as v
 from gdfe._validation import GdfeError
+from gdfe.physical_ranges import MAX_CONTRACTION, MICROMETRE_HINT, RANGES
 from .material import BilayerMaterial
 from gdfe.timoshenko import timoshenko_curvature
 
@@ -37,6 +44,8 @@ log = logging.getLogger(__name__)
 #: Modulus ratios ``E_passive / E_active`` at which the hinge angles are computed.
 DEFAULT_RATIOS = tuple(float(r) for r in np.geomspace(0.1, 100.0, 13))
 _PROBE = -0.1  # eigenstrain of the linear solves (the angle is scaled to a unit contraction)
+#: The lower bound of the fitted eigenstrain: a film that contracts by 100 % would vanish.
+EIGENSTRAIN_FLOOR = -0.999
 
 
 @dataclasses.dataclass
@@ -56,7 +65,12 @@ class TableFit:
     r2 : float
         Coefficient of determination of the fit.
     at_bound : bool
-        True when the best ratio is at the edge of the searched grid.
+        True when a parameter stopped at a bound of its fit: :attr:`E_ratio_at_bound` or
+        :attr:`eigenstrain_at_bound`.
+    E_ratio_at_bound : bool
+        The best ratio is at the edge of the searched grid.
+    eigenstrain_at_bound : bool
+        The best eigenstrain is :data:`EIGENSTRAIN_FLOOR`, the bound of its fit.
     L, d, h, measured, predicted, loo_predicted : (n,) float arrays
         The tests [mm, mm, mm, rad] and the fitted / left-out predictions [rad].
     loo_params : (n, 2) float array
@@ -85,6 +99,8 @@ class TableFit:
     profile_rmse: np.ndarray
     seconds: float
     settings: dict = dataclasses.field(default_factory=dict)
+    E_ratio_at_bound: bool = False
+    eigenstrain_at_bound: bool = False
 
     def material(self) -> BilayerMaterial:
         """The fitted :class:`BilayerMaterial` (Poisson's ratio as used in the fit)."""
@@ -181,9 +197,10 @@ def _unit_row(job):
 
 
 def _best_eps(a, alpha):
-    """Least-squares eigenstrain for unit angles ``a`` and measured ``alpha``; returns (eps, rss)."""
+    """Least-squares eigenstrain for unit angles ``a`` and measured ``alpha``, at least
+    :data:`EIGENSTRAIN_FLOOR`; returns (eps, rss)."""
     s = -(a @ alpha) / (a @ a)
-    s = max(s, -0.999)
+    s = max(s, EIGENSTRAIN_FLOOR)
     r = alpha + s * a
     return s, float(r @ r)
 
@@ -203,8 +220,8 @@ def _fit_rows(logr, spline, alpha, rows):
         x = minimize_scalar(rss, bounds=(lo, hi), method="bounded",
                             options={"xatol": 1e-6}).x
     eps = _best_eps(spline(x)[rows], alpha[rows])[0]
-    at_bound = bool(np.isclose(x, logr[0], atol=1e-3) or np.isclose(x, logr[-1], atol=1e-3))
-    return float(x), float(eps), at_bound, grid
+    ratio_at_bound = bool(np.isclose(x, logr[0], atol=1e-3) or np.isclose(x, logr[-1], atol=1e-3))
+    return float(x), float(eps), (ratio_at_bound, bool(eps <= EIGENSTRAIN_FLOOR)), grid
 
 
 def fit_to_table(L, d, h, alpha, *, model="fem", ratios=DEFAULT_RATIOS, nu=0.35, width=1.0,
@@ -247,7 +264,8 @@ def fit_to_table(L, d, h, alpha, *, model="fem", ratios=DEFAULT_RATIOS, nu=0.35,
     logr = np.log(ratios)
     spline = CubicSpline(logr, A, axis=1)
     rows = np.arange(L.size)
-    x, eps, at_bound, grid = _fit_rows(logr, spline, alpha, rows)
+    x, eps, (ratio_at_bound, eps_at_bound), grid = _fit_rows(logr, spline, alpha, rows)
+    _warn_eigenstrain(eps, eps_at_bound, d, h)
     pred = -eps * spline(x)
     loo = np.empty(L.size)
     loo_params = np.empty((L.size, 2))
@@ -260,8 +278,26 @@ def fit_to_table(L, d, h, alpha, *, model="fem", ratios=DEFAULT_RATIOS, nu=0.35,
     return TableFit(model=model, E_ratio=float(np.exp(x)), eigenstrain=eps,
                     rmse=float(np.sqrt(np.mean(res**2))),
                     loo_rmse=float(np.sqrt(np.mean((alpha - loo) ** 2))), r2=r2,
-                    at_bound=at_bound, L=L, d=d, h=h, measured=alpha, predicted=pred,
+                    at_bound=ratio_at_bound or eps_at_bound, L=L, d=d, h=h, measured=alpha, predicted=pred,
                     loo_predicted=loo, loo_params=loo_params, ratios=ratios,
                     profile_rmse=np.sqrt(grid / L.size), seconds=time.perf_counter() - t0,
                     settings={"nu": nu, "width_mm": width, "resolution": resolution,
-                              "probe_eigenstrain": _PROBE})
+                              "probe_eigenstrain": _PROBE},
+                    E_ratio_at_bound=ratio_at_bound, eigenstrain_at_bound=eps_at_bound)
+
+
+def _warn_eigenstrain(eps, at_bound, d, h):
+    """Warn of a fitted eigenstrain outside the film's free shrink ``[-MAX_CONTRACTION, 0]`` (or at the
+    bound of its fit), naming the thicknesses that look like micrometres."""
+    if -MAX_CONTRACTION <= eps <= 0.0 and not at_bound:
+        return
+    stop = (f" stopped at the bound {EIGENSTRAIN_FLOOR:g} of its fit (a film that contracts by 100 % vanishes) and"
+            if at_bound else "")
+    big = [(name, float(a.max())) for name, a in (("d", d), ("h", h))]
+    um = [f"{name}_mm up to {v:g}" for name, v in big if v > MICROMETRE_HINT and RANGES[name].contains(v / 1000.0)]
+    hint = (f"; {' and '.join(um)} look like micrometres: lengths are in mm "
+            f"({', '.join(f'{n} in [{RANGES[n].lo:g}, {RANGES[n].hi:g}] mm' for n, _ in big)})" if um else "")
+    log.warning("eigenstrain = %.4g%s is outside the physical range [%g, 0] of the film's free shrink "
+                "(pre-strained polystyrene shrinks in-plane by at most 50-60 %%): the fit uses it to absorb "
+                "something else, and its E_ratio and eigenstrain describe no film%s", eps, stop, -MAX_CONTRACTION,
+                hint)

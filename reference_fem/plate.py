@@ -15,7 +15,9 @@ number so that its mid-plane is a node plane). The coat may be thicker on some c
 others: the node planes of a coat are the union of those of each thickness present, and an
 element of the coat is kept where the cell's coat reaches it. Each design cell is cut into
 ``refine x refine`` elements in-plane; ``coarsen`` first merges ``coarsen x coarsen`` blocks of
-cells (the majority material of the block: the same masks printed with a coarser pixel).
+cells (the majority material of the block: the same masks printed with a coarser pixel); a
+coarsening that would change the film's extent or lose a region of one material beyond a block's
+rounding (a one-pixel hinge) is refused, naming what it would lose and the factors that keep them.
 
 The film's eigenstrain (the material's, :class:`~reference_fem.BilayerMaterial`) is an
 in-plane contraction; the design's ``isotropy`` scales its y component as in GDFE. Per-element
@@ -139,25 +141,99 @@ def design_grid(design, d=None) -> DesignGrid:
 
 
 def _coarsened(grid: DesignGrid, k: int) -> DesignGrid:
-    """Merge k x k blocks of cells: each block takes the most common material of its film cells."""
+    """Merge k x k blocks of cells: each block takes the most common material of its film cells.
+
+    Raises
+    ------
+    GdfeError
+        Naming ``coarsen`` where the merge would change the film's extent or lose a region of one
+        material (:func:`_coarsening_losses`), with the factors that keep them.
+    """
     if k == 1:
         return grid
+    lost = _coarsening_losses(grid, k)
+    if lost:
+        nx, ny = grid.material.shape
+        keep = [f for f in range(2, min(nx, ny) + 1) if not _coarsening_losses(grid, f)]
+        works = (f"factors that keep them: {', '.join(map(str, keep))}" if keep else
+                 "only 1 keeps them (no coarsening)")
+        raise GdfeError(f"coarsen: expected a factor that keeps the film's extent and every region of one "
+                        f"material, got {k}: {'; '.join(lost[:MAX_LOSSES])}"
+                        f"{f' and {len(lost) - MAX_LOSSES} more' if len(lost) > MAX_LOSSES else ''}; {works}")
+    return _merged(grid, k)
+
+
+#: Losses a coarsening's message lists before it says how many more there are.
+MAX_LOSSES = 3
+
+
+def _coarsening_losses(grid: DesignGrid, k: int) -> list:
+    """What merging k x k blocks would lose, in words (empty where it keeps the design).
+
+    The film's extent is kept where its grid is a whole number of blocks along x and along y. A
+    region (the cells of one material joined side to side: a hinge, a panel, a free-shrinking patch)
+    is kept where some block takes its material, and where the blocks that take it, among those the
+    region touches, hold as many cells as it has to within half a block (its cell count rounded to
+    whole blocks). A region that no block keeps is lost however small: a one-pixel hinge is a fold.
+    """
+    from scipy import ndimage
+
     nx, ny = grid.material.shape
-    px, py = -(-nx // k) * k, -(-ny // k) * k
-    mat = np.full((px, py), -1, dtype=np.int64)
-    mat[:nx, :ny] = grid.material
-    blocks = mat.reshape(px // k, k, py // k, k).transpose(0, 2, 1, 3).reshape(px // k, py // k, k * k)
+    if nx % k or ny % k:
+        px, py = -(-nx // k) * k, -(-ny // k) * k
+        return [f"the film's grid of {nx} x {ny} cells ({nx * grid.pixel[0]:.4g} x {ny * grid.pixel[1]:.4g} mm) "
+                f"is not a whole number of {k} x {k} blocks: padded to {px} x {py} cells "
+                f"({px * grid.pixel[0]:.4g} x {py * grid.pixel[1]:.4g} mm), the blocks on its edge would change "
+                f"the film's extent"]
+    coarse = _block_material(grid.material, k).ravel()
+    block = np.kron(np.arange(coarse.size).reshape(nx // k, ny // k), np.ones((k, k), int))  # each cell's block
+    out = []
+    for code in np.unique(grid.material[grid.film]):
+        labels, n = ndimage.label(grid.material == code)
+        inside = labels > 0
+        size = np.bincount(labels[inside], minlength=n + 1)
+        pairs = np.unique(labels[inside] * coarse.size + block[inside])  # (region, block) touched
+        region, touched = np.divmod(pairs, coarse.size)
+        kept = np.bincount(region, weights=coarse[touched] == code, minlength=n + 1).astype(int) * k * k
+        lost = (kept == 0) | (2 * np.abs(kept - size) > k * k)
+        boxes = ndimage.find_objects(labels)
+        for r in np.flatnonzero(lost[1:]) + 1:
+            out.append(_region_loss(grid, boxes[r - 1], Material(int(code)).name.lower(), size[r], kept[r]))
+    return out
+
+
+def _region_loss(grid, box, name, size, kept):
+    """``N name cells at x .. mm, y .. mm vanish`` (or ``become M``) of a region in the slices ``box``."""
+    lo = grid.origin + np.array([box[0].start, box[1].start]) * grid.pixel
+    hi = grid.origin + np.array([box[0].stop, box[1].stop]) * grid.pixel
+    change = "vanish" if kept == 0 else f"become {kept}"
+    cells = f"{size} {name} cell{'s' if size != 1 else ''}"
+    return f"{cells} at x {lo[0]:.4g}-{hi[0]:.4g} mm, y {lo[1]:.4g}-{hi[1]:.4g} mm {change}"
+
+
+def _blocks(a, k):
+    """``(nx/k, ny/k, k*k)``: the values of ``a`` in each k x k block (its shape a whole number of blocks)."""
+    nx, ny = a.shape
+    return a.reshape(nx // k, k, ny // k, k).transpose(0, 2, 1, 3).reshape(nx // k, ny // k, k * k)
+
+
+def _block_material(material, k):
+    """Each k x k block's material: film where at least half its cells are, of the most common material
+    of its film cells (-1 elsewhere)."""
+    blocks = _blocks(material, k)
     counts = np.stack([(blocks == c).sum(axis=2) for c in range(4)], axis=2)
-    # a block is film where at least half its cells are, and takes its most common material
-    material = np.where(2 * counts.sum(axis=2) >= k * k, counts.argmax(axis=2), -1)
+    return np.where(2 * counts.sum(axis=2) >= k * k, counts.argmax(axis=2), -1)
+
+
+def _merged(grid: DesignGrid, k: int) -> DesignGrid:
+    """The grid of k x k blocks (the grid a whole number of them): :func:`_block_material`, and the median
+    coat thickness of each face over the block."""
+    material = _block_material(grid.material, k)
 
     def thickness(d):
-        pad = np.full((px, py), np.nan)
-        pad[:nx, :ny] = d
-        b = pad.reshape(px // k, k, py // k, k).transpose(0, 2, 1, 3).reshape(px // k, py // k, k * k)
         with warnings.catch_warnings():  # blocks with no coat on that face are NaN
             warnings.simplefilter("ignore", RuntimeWarning)
-            return np.nanmedian(b, axis=2)
+            return np.nanmedian(_blocks(d, k), axis=2)
 
     d_top, d_bottom = thickness(grid.d_top), thickness(grid.d_bottom)
     fill_t = np.nanmedian(grid.d_top) if np.isfinite(grid.d_top).any() else np.nan
@@ -256,7 +332,8 @@ def plate_mesh(design, *, resolution="default", refine=None, layers_per_ply=None
         Elements through each ply, >= 1; the film gets the next even number (one layer only with
         quadratic elements, whose middle nodes lie on the film's mid-plane).
     coarsen : int
-        Merge ``coarsen x coarsen`` blocks of design cells first (>= 1; 1: the design's own cells).
+        Merge ``coarsen x coarsen`` blocks of design cells first (>= 1; 1: the design's own cells);
+        refused where that changes the film's extent or loses a region of one material.
     d : float [mm], optional
         Coat thickness where the design gives none (see :func:`design_grid`).
     max_coat_levels : int
@@ -267,6 +344,11 @@ def plate_mesh(design, *, resolution="default", refine=None, layers_per_ply=None
     Returns
     -------
     Plate
+
+    Raises
+    ------
+    GdfeError
+        Naming ``coarsen`` where the merge would lose a region or change the film's extent.
     """
     from skfem import MeshHex
 

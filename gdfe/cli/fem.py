@@ -12,7 +12,7 @@ import logging
 from pathlib import Path
 
 from gdfe import paper
-from gdfe._validation import check_int, check_length, check_number
+from gdfe._validation import GdfeError, check_int, check_length, check_number
 from gdfe.cli._common import (emit, file_path, json_arg, noting, out_arg, output_folder, scheduler_arg, shown,
                                using_scheduler)
 
@@ -192,8 +192,9 @@ def _cmd_calibrate(args) -> int:
                            resolution=args.resolution, progress=not args.json)
     text = "\n".join([
         f"{args.model} fit to {len(tests)} folding tests ({fit.seconds:.0f} s)",
-        f"  E_passive / E_active = {fit.E_ratio:.4g}{'  (at the edge of the grid)' if fit.at_bound else ''}",
-        f"  eigenstrain          = {fit.eigenstrain:.4f}",
+        f"  E_passive / E_active = {fit.E_ratio:.4g}{'  (at the edge of the grid)' if fit.E_ratio_at_bound else ''}",
+        f"  eigenstrain          = {fit.eigenstrain:.4f}"
+        f"{'  (at the bound of its fit)' if fit.eigenstrain_at_bound else ''}",
         f"  RMSE                 = {fit.rmse:.4f} rad (R^2 = {fit.r2:.3f})",
         f"  leave-one-out RMSE   = {fit.loo_rmse:.4f} rad",
     ])
@@ -222,8 +223,13 @@ def _cmd_simulate(args) -> int:
     folder = output_folder(args.out, args)
     design, _ = gdfe.load_design(args.design)
     mat = BilayerMaterial.from_ratio(ratio, eps, nu=args.nu)
-    plate = plate_mesh(design, resolution=args.resolution, refine=args.refine, coarsen=args.coarsen, d=args.d,
-                       meta={"design": str(args.design)})
+    try:
+        plate = plate_mesh(design, resolution=args.resolution, refine=args.refine, coarsen=args.coarsen, d=args.d,
+                           meta={"design": str(args.design)})
+    except GdfeError as exc:  # the library's coarsen is the command's --coarsen
+        if not str(exc).startswith("coarsen: "):
+            raise
+        raise GdfeError(f"--coarsen {args.coarsen}: {str(exc)[len('coarsen: '):]}") from None
     with noting(folder):
         res = solve_plate(plate, mat, support=args.support, solver=args.solver, linear=args.linear,
                           keep_steps=True, progress=None if getattr(args, "quiet", False) else _step_line())
