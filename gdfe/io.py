@@ -21,9 +21,9 @@ import numpy as np
 from gdfe._validation import GdfeError, GdfeTypeError, describe
 
 __all__ = ["read_mesh", "write_vtu", "write_series", "render_png", "write_json", "write_text", "check_creatable",
-           "surface_faces", "boundary_quads", "atomic_path", "json_default", "save_figure", "OutputFolder", "MATERIAL_CODES", "MANIFEST", "MARKER",
-           "folder_state", "hex_meshio", "material_field_data", "outline_edges", "EDGE_CELLS", "MATERIAL_LABELS",
-           "VIEWS"]
+           "surface_faces", "boundary_quads", "atomic_path", "json_default", "save_figure", "OutputFolder",
+           "MATERIAL_CODES", "MANIFEST", "MARKER", "folder_state", "hex_meshio", "material_field_data",
+           "outline_edges", "EDGE_CELLS", "MATERIAL_LABELS", "VIEWS"]
 
 log = logging.getLogger(__name__)
 

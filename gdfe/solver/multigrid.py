@@ -44,7 +44,8 @@ from gdfe.solver.linalg import factorise
 from gdfe.solver.threads import RowBlocks
 
 __all__ = ["MULTIGRID_CELLS", "MG_COARSEST", "MG_SMOOTHING", "MG_ASPECT", "MG_SOLVE_RATIO", "MG_CHEBYSHEV_FROM",
-           "JACOBI_TOP", "LAMBDA_MARGIN", "largest_eigenvalue", "jacobi_weight", "lattice", "prolongation", "chebyshev2", "Multigrid"]
+           "JACOBI_TOP", "LAMBDA_MARGIN", "largest_eigenvalue", "jacobi_weight", "lattice", "prolongation",
+           "chebyshev2", "Multigrid"]
 
 #: Designs above this many cells solve the assembly step with the multigrid (in CG) and
 #: precondition the Newton steps with one V-cycle, instead of factorising ``L_ff``
