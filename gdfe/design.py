@@ -424,64 +424,12 @@ def _grid_design(material2d, R, h, pixel, nz, isotropy, film, regions2d, meta, d
 
 
 def _check_coat(model, design, process=None):
-    """Refuse a coat on which ``model`` gives a contraction ratio below ``R_MIN`` (the film would
-    all but vanish), naming the thinnest coat that gives at least ``R_MIN``.
-
-    Parameters
-    ----------
-    model : DeformationModel
-    design : Design
-        Its cells coated on one face carry the coat thickness ``design.d``.
-    process : dict, optional
-        The part's process variables, for the model's process mechanisms.
-
-    Raises
-    ------
-    GdfeError
-        Naming ``d``, the ratio it gives and the thinnest coat that passes.
-    """
-    mat = design.material
-    one_side = (mat == Material.CONTRACT_TOP) | (mat == Material.CONTRACT_BOTTOM)
+    """Refuse a coat on which ``model`` gives a contraction ratio below ``R_MIN`` (the film would all but
+    vanish), naming the thinnest coat that gives at least ``R_MIN`` (:meth:`DeformationModel.check_coats`)."""
     if design.d is None:
         return
-    for d in np.unique(design.d[one_side & np.isfinite(design.d)]):  # thinnest first
-        try:
-            R = 1.0 - float(model.contraction(d, design.h, process))
-        except GdfeError as exc:  # R <= 0: the model says which R, and needs a thicker coat still
-            if d > model.d_min(design.h, process):
-                raise
-            said = str(exc).split("; a contraction ratio")[0]
-        else:
-            if R >= R_MIN:
-                continue
-            said = (f"d={d:g} mm gives R={R:.4g} by model {model.name!r} ({model.describe_principle()}, "
-                    f"h={design.h:g} mm)")
-        thinnest = _thinnest_coat(model, design.h, process)
-        need = (f"which needs d >= {thinnest:g} mm" if thinnest is not None else
-                "which no passive thickness up to 1 m gives with these parameters")
-        raise GdfeError(f"{said}; a contraction ratio must lie in [{R_MIN:g}, 1], {need}")
-
-
-def _thinnest_coat(model, h, process):
-    """The thinnest coat [mm] on which ``model`` gives a contraction ratio of at least ``R_MIN``,
-    rounded up to 4 significant digits (a coat of the number said passes); None where none does."""
-    from scipy.optimize import brentq
-
-    def short(log_d):  # > 0 where the coat is too thin
-        try:
-            return R_MIN - (1.0 - float(model.contraction(math.exp(log_d), h, process)))
-        except GdfeError:  # R <= 0
-            return 1.0
-
-    d0 = model.d_min(h, process)  # R = 0 there
-    if not math.isfinite(d0):
-        return None
-    lo, hi = math.log(max(d0, LENGTH_RANGE[0])), math.log(1e3)
-    if not short(lo) > 0 >= short(hi):
-        return None
-    d = math.exp(brentq(short, lo, hi, xtol=1e-12))
-    scale = 10.0 ** (3 - math.floor(math.log10(d)))
-    return math.ceil(d * scale) / scale
+    one_side = (design.material == Material.CONTRACT_TOP) | (design.material == Material.CONTRACT_BOTTOM)
+    model.check_coats(design.d[one_side & np.isfinite(design.d)], design.h, process, ratio=R_MIN)
 
 
 #: What each kind of design calls its film, for the message of a film in pieces.

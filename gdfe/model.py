@@ -514,17 +514,17 @@ class DeformationModel:
                             f"h={hb:g} mm); a contraction ratio must lie in (0, 1], {need}")
         return c
 
-    def d_min(self, h=paper.H, process=None):
-        """Thinnest passive layer [mm] for which the model gives R > 0 at film thickness ``h``
-        (for the process mechanisms: at ``process``, or fully activated and in the reference
-        group where none is given)."""
+    def d_min(self, h=paper.H, process=None, ratio=0.0):
+        """Thinnest passive layer [mm] for which the model gives R > ``ratio`` (default 0: a film that
+        does not vanish) at film thickness ``h`` (for the process mechanisms: at ``process``, or fully
+        activated and in the reference group where none is given)."""
         factor = 1.0 if process is None else self.process_factor(process)
         from scipy.optimize import brentq
 
         def excess(log_d):
             with np.errstate(all="ignore"):
                 c = self._stage_c(np.exp(log_d), h, factor)
-            return (c if np.isfinite(c) else 2.0) - 1.0
+            return (c if np.isfinite(c) else 2.0) - (1.0 - ratio)
 
         lo, hi = np.log(1e-6), np.log(1e3)
         if excess(lo) < 0:  # never reaches R <= 0 (e.g. a thickening film)
@@ -532,6 +532,25 @@ class DeformationModel:
         if excess(hi) >= 0:
             return math.inf
         return float(np.exp(brentq(excess, lo, hi, xtol=1e-12)))
+
+    def check_coats(self, d, h, process=None, ratio=0.0):
+        """Refuse coats ``d`` [mm] on which the model gives a contraction ratio below ``ratio``, naming
+        the thinnest (and the ratio it gives) and the thinnest coat that passes: :meth:`d_min` at
+        ``ratio``, rounded up to 4 significant digits so that the number said passes."""
+        d = np.atleast_1d(np.asarray(d, float))
+        thinnest = self.d_min(h, process, ratio)
+        if not d.size or d.min() >= thinnest:
+            return
+        bad = float(d.min())
+        with np.errstate(all="ignore"):
+            R = 1.0 - self._stage_c(bad, h, 1.0 if process is None else self.process_factor(process))
+        if math.isfinite(thinnest):
+            scale = 10.0 ** (3 - math.floor(math.log10(thinnest)))
+            need = f"which needs d >= {math.ceil(thinnest * scale) / scale:g} mm"
+        else:
+            need = "which no passive thickness up to 1 m gives with these parameters"
+        raise GdfeError(f"d={bad:g} mm gives R={R:.4g} by model {self.name!r} ({self.describe_principle()}, "
+                        f"h={h:g} mm); a contraction ratio must lie in [{ratio:g}, 1], {need}")
 
     def _stage_c(self, d, h, factor=1.0):
         """Stages 1-2 without checks (:meth:`contraction`'s formula)."""

@@ -51,6 +51,8 @@ def test_thin_coat_is_an_error_naming_d_and_the_limit():
         paper_model().ratio(0.11)
     # the same limit, found numerically for any principle, as Eq. 3's closed form says
     assert paper_model().d_min() == pytest.approx(0.29 * 0.3706 ** (2 / 3), rel=1e-9)
+    # at a ratio R the design accepts: 1 - K (h/d)^1.5 = R, so d = h (K / (1 - R))^(2/3)
+    assert paper_model().d_min(ratio=0.01) == pytest.approx(0.29 * (0.3706 / 0.99) ** (2 / 3), rel=1e-9)
 
 
 def test_cure_depth_and_thickening_per_cell():
