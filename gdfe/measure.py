@@ -257,8 +257,8 @@ def panel_angles(result, design=None, min_cells=2):
     panels, n_panels = ndimage.label(rigid)
     sizes = np.bincount(panels.ravel(), minlength=n_panels + 1)
     hinges, n_hinges = ndimage.label(other & ~rigid)
-    frames = _PanelFrames(points, design, panels[i, j])
-    cell_hinge = hinges[i, j]
+    frames = _PanelFrames(points, design, _cells_by_label(panels[i, j], n_panels))
+    hinge_cells = _cells_by_label(hinges[i, j], n_hinges)
 
     found = {}
     cross = ndimage.generate_binary_structure(2, 1)
@@ -272,11 +272,18 @@ def panel_angles(result, design=None, min_cells=2):
             for b in touching[a_idx + 1:]:
                 at = _at_hinge(panels[box], near, a, box)
                 bt = _at_hinge(panels[box], near, b, box)
-                angle = frames.fold(a, b, at, bt, np.nonzero(cell_hinge == h)[0], unwrap=len(touching) == 2)
+                angle = frames.fold(a, b, at, bt, hinge_cells[h], unwrap=len(touching) == 2)
                 key = (a, b)
                 found.setdefault(key, {"panels": [a, b], "hinge_cells": 0, "angle_rad": angle})
                 found[key]["hinge_cells"] += int(region.sum())
     return [found[k] for k in sorted(found)]
+
+
+def _cells_by_label(labels, n):
+    """The cells of each label 0..n: a list whose entry ``k`` holds the indices of the cells labelled ``k``
+    (one sort, not a pass over the cells per label)."""
+    order = np.argsort(labels, kind="stable")
+    return np.split(order, np.cumsum(np.bincount(labels, minlength=n + 1))[:-1])
 
 
 def _at_hinge(labels, near, panel, box):
@@ -288,8 +295,8 @@ def _at_hinge(labels, near, panel, box):
 class _PanelFrames:
     """Rigid frames of panels and of a hinge's slices, and the signed, unwrapped fold between two panels."""
 
-    def __init__(self, points, design, cell_panel):
-        self.points, self.design, self.cell_panel = points, design, cell_panel
+    def __init__(self, points, design, panel_cells):
+        self.points, self.design, self.panel_cells = points, design, panel_cells
         self.spacing = np.asarray(design.mesh.spacing[:2], float)
         self.rot = {}
 
@@ -303,7 +310,7 @@ class _PanelFrames:
 
     def panel(self, label):
         if label not in self.rot:
-            self.rot[label] = self._frame(np.nonzero(self.cell_panel == label)[0])
+            self.rot[label] = self._frame(self.panel_cells[label])
         return self.rot[label]
 
     def fold(self, a, b, at_a, at_b, hinge_cells, unwrap=True):
