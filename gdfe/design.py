@@ -26,7 +26,7 @@ from gdfe.calibration import DEFAULT_H, PAPER_K
 from gdfe.material import LAYOUT_CHARS, Material
 from gdfe.mesh import DEFAULT_NZ, HexMesh, sheet_mesh
 from gdfe.model import as_model, paper_model
-from gdfe.physical_ranges import MAX_CONTRACTION, MICROMETRE_HINT, RANGES, check_contraction
+from gdfe.physical_ranges import MAX_CONTRACTION, RANGES, check_contraction, looks_like_micrometres
 from gdfe.resources import check_design_cells
 
 log = logging.getLogger(__name__)
@@ -290,7 +290,7 @@ def _thickness_note(name, what, values):
     given = f"{out[0]:g} mm" if out.size == 1 else f"{out[0]:g} to {out[-1]:g} mm"
     note = f"{what}: {name} = {given} is outside the physical range [{r.lo:g}, {r.hi:g}] mm ({r.why})"
     big = out[-1]
-    if big > MICROMETRE_HINT and r.contains(big / 1000.0):
+    if looks_like_micrometres(name, big):
         note += f"; lengths are in mm: {big:g} looks like micrometres, {name} = {big / 1000.0:g} mm"
     return note
 

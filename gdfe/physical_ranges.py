@@ -29,7 +29,8 @@ import math
 
 import numpy as np
 
-__all__ = ["Range", "RANGES", "MAX_CONTRACTION", "MICROMETRE_HINT", "range_of", "check", "check_contraction"]
+__all__ = ["Range", "RANGES", "MAX_CONTRACTION", "MICROMETRE_HINT", "looks_like_micrometres", "range_of", "check",
+           "check_contraction"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -64,6 +65,12 @@ MAX_CONTRACTION = 0.6
 #: A thickness [mm] above its range and above this, that lies inside the range read as micrometres,
 #: looks like micrometres (290 for a film of 0.29 mm).
 MICROMETRE_HINT = 10.0
+
+def looks_like_micrometres(name, value) -> bool:
+    """Whether a thickness ``value`` [mm] of ``name`` (``"h"``, ``"d"``) reads as one in micrometres: above
+    :data:`MICROMETRE_HINT` and inside its range once divided by 1000 (290 for a film of 0.29 mm)."""
+    return bool(value > MICROMETRE_HINT and RANGES[name].contains(value / 1000.0))
+
 
 #: Parameter name -> :class:`Range`. ``scale[g]`` (one per group of a ``batch`` effect) is
 #: listed as ``"scale"``; see :func:`range_of`.

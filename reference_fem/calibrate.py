@@ -33,7 +33,7 @@ import numpy as np
 
 from gdfe import _validation as v
 from gdfe._validation import GdfeError
-from gdfe.physical_ranges import MAX_CONTRACTION, MICROMETRE_HINT, RANGES
+from gdfe.physical_ranges import MAX_CONTRACTION, RANGES, looks_like_micrometres
 from .material import BilayerMaterial
 from gdfe.timoshenko import timoshenko_curvature
 
@@ -294,7 +294,7 @@ def _warn_eigenstrain(eps, at_bound, d, h):
     stop = (f" stopped at the bound {EIGENSTRAIN_FLOOR:g} of its fit (a film that contracts by 100 % vanishes) and"
             if at_bound else "")
     big = [(name, float(a.max())) for name, a in (("d", d), ("h", h))]
-    um = [f"{name}_mm up to {v:g}" for name, v in big if v > MICROMETRE_HINT and RANGES[name].contains(v / 1000.0)]
+    um = [f"{name}_mm up to {v:g}" for name, v in big if looks_like_micrometres(name, v)]
     hint = (f"; {' and '.join(um)} look like micrometres: lengths are in mm "
             f"({', '.join(f'{n} in [{RANGES[n].lo:g}, {RANGES[n].hi:g}] mm' for n, _ in big)})" if um else "")
     log.warning("eigenstrain = %.4g%s is outside the physical range [%g, 0] of the film's free shrink "
