@@ -76,7 +76,7 @@ def draws_for(level):
     """The fewest draws whose central interval at ``level`` has a draw beyond each end, ``n (1 - level) / 2 >= 1``:
     20 for 0.9, 40 for 0.95; with fewer, the interval's ends lie within the range of the draws, and it is narrower
     than the level says."""
-    return math.ceil(2.0 / (1.0 - level) * (1.0 - 1e-9))  # round-off: 2 / (1 - 0.9) is 20.000000000000004
+    return math.ceil(round(2.0 / (1.0 - level), 6))  # 2 / (1 - 0.9) is 20.000000000000004 in floating point
 
 
 def wilson_interval(k, n, level=LEVEL):
@@ -320,7 +320,6 @@ def fold_ensemble(design, model, n, *, nominal, measure, labels=None, level=LEVE
     from gdfe.predict import draw_models
 
     n = check_int("n", n, minimum=2)
-    check_int("seed", seed, minimum=0)
     level = check_number("level", level, minimum=0.0)
     if not 0 < level < 1:
         raise GdfeError(f"level: expected a number between 0 and 1, got {level:g}")
@@ -328,6 +327,7 @@ def fold_ensemble(design, model, n, *, nominal, measure, labels=None, level=LEVE
         raise GdfeError(f"model {getattr(model, 'name', model)!r}: expected a model with predictive content (a "
                         f"parameter covariance or an ensemble: gdfe diagnose or gdfe calibrate --model-out) to draw "
                         f"from")
+    draws = draw_models(model, n, seed=seed)  # first: it checks the seed
     opts = {k: v for k, v in (options or {}).items() if k in DRAW_OPTIONS and v is not None}
     if start not in STARTS:
         raise GdfeError(f"start: expected one of {', '.join(map(repr, STARTS))}, got {start!r}")
@@ -339,7 +339,6 @@ def fold_ensemble(design, model, n, *, nominal, measure, labels=None, level=LEVE
     labels = list(labels) if labels is not None else [f"angle {j}" for j in range(k)]
     if len(labels) != k:
         raise GdfeError(f"labels: expected {k} (one per fold angle), got {len(labels)}")
-    draws = draw_models(model, n, seed=seed)
     designs = [m.apply(design, process) for m in draws]
     pilots = PILOT if how == "predicted" and n > PILOT else n
 

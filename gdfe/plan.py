@@ -251,6 +251,7 @@ def plan_tests(model, n, L_range=L_RANGE, d_range=D_RANGE, h_range=None, *, grid
     n = check_int("n", n, minimum=1)
     grid = check_int("grid", grid, minimum=2)
     samples = check_int("samples", samples, minimum=100)
+    seed = check_int("seed", seed, minimum=0)
     Lg, dg, hg = candidate_grid(L_range, d_range, h_range, grid)
     members = members_of(model)
     names = [m.model.name for m in members]
@@ -264,7 +265,6 @@ def plan_tests(model, n, L_range=L_RANGE, d_range=D_RANGE, h_range=None, *, grid
         raise _no_valid_candidate(L_range, d_range, (float(hg.min()), float(hg.max())))
     mu, Lg, dg, hg = mu[ok], Lg[ok], dg[ok], hg[ok]
     jac = [J[ok] for J in jac]
-    seed = check_int("seed", seed, minimum=0)
     rng = np.random.default_rng(seed)
     truth = np.arange(samples) % K  # stratified: every member equally often
     Z = np.zeros((samples, 0))
