@@ -802,12 +802,14 @@ def _check_creases_bound_faces(cp, V, tol):
     """Warn of a crease that runs through a face (joins two of its corners that are not neighbours, inside it):
     its hinge is printed and folds, but the faces on its sides are not in the file, so its fold is not
     measured (:func:`gdfe.fabrication.crease_angles` joins a crease's two faces)."""
-    joined = crease_faces(cp)
-    for e, faces in joined.items():
-        ends = set(cp.edges[e].tolist())
-        for k, f in enumerate(cp.faces):
-            if k in faces or not ends <= set(f.tolist()):
-                continue
+    holding = {}  # vertex -> the faces with that corner
+    for k, f in enumerate(cp.faces):
+        for v in f.tolist():
+            holding.setdefault(v, set()).add(k)
+    for e, faces in crease_faces(cp).items():
+        a, b = cp.edges[e].tolist()
+        for k in sorted((holding.get(a, set()) & holding.get(b, set())) - set(faces)):
+            f = cp.faces[k]
             if _inside(V[f], V[cp.edges[e]].mean(axis=0)[None], tol)[0]:
                 log.warning("%s: edges_vertices[%d] (%s) runs through faces_vertices[%d] from corner to corner: "
                             "its hinge is printed, but its fold is not measured (split the face along the crease "
